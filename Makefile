@@ -1,0 +1,36 @@
+# szdyn: two commands do everything on a fresh machine: `make run` and `make test`.
+PYTHON ?= python3
+VENV   ?= .venv
+PY     := $(VENV)/bin/python
+STAMP  := $(VENV)/.installed
+OUT    ?= results
+
+.PHONY: run test derive bench venv clean
+
+venv: $(STAMP)
+
+# Create the virtual environment and install szdyn (editable) with the test/derive extras.
+$(STAMP): pyproject.toml
+	$(PYTHON) -m venv $(VENV)
+	$(PY) -m pip install --quiet --disable-pip-version-check -e '.[test]'
+	touch $(STAMP)
+
+## run: the thesis scenario on built-in defaults; CSV, JSON and PNG into $(OUT)/
+run: $(STAMP)
+	$(PY) -m szdyn.run --out $(OUT)
+
+## test: the whole test suite
+test: $(STAMP)
+	$(PY) -m pytest -q
+
+## derive: re-derive the model with SymPy and regenerate generated/
+derive: $(STAMP)
+	$(PY) -m derive --out generated
+
+## bench: benchmarks, written to BENCHMARKS.md
+bench: $(STAMP)
+	$(PY) bench/run_bench.py --out BENCHMARKS.md
+
+clean:
+	rm -rf $(VENV) $(OUT) .pytest_cache
+	find . -name __pycache__ -prune -exec rm -rf {} +

@@ -1,0 +1,103 @@
+"""Force laws as swappable symbolic objects, separate from the kinematics.
+
+Each law maps a few kinematic scalars (overlap and its rate, a speed) to a force or torque.
+The kinematic kernels are derived with *symbols* standing for these outputs
+(``f_n``, ``f_t``, ``tau_b``, ``T_m``), so a law can be exchanged without re-deriving the
+kinematics. Each law also emits its own small Numba function (see ``codegen``).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import sympy as sm
+
+from .symbols import P
+
+delta, delta_dot, speed = sm.symbols("delta delta_dot speed", real=True)
+
+
+@dataclass(frozen=True)
+class LawFunction:
+    """One emitted scalar function ``name(*args, p) -> expr`` with a docstring."""
+
+    name: str
+    args: tuple[sm.Symbol, ...]
+    expr: sm.Expr
+    doc: str
+
+
+class HuntCrossleyImpact:
+    """Nonlinear viscoelastic normal force of eqs 34-35, ``delta^n (k_imp + b_imp delta_dot)``.
+
+    With ``impact_clamp = 1`` the force is clamped at zero: the printed formula turns
+    attractive while the bodies separate fast, which a contact cannot do (model-notes 2).
+    """
+
+    name = "impact"
+
+    def normal_force(self, d=delta, dd=delta_dot) -> sm.Expr:
+        raw = d ** P["n_imp"] * (P["k_imp"] + P["b_imp"] * dd)
+        return sm.Piecewise((sm.Max(raw, 0), P["impact_clamp"] > sm.Rational(1, 2)), (raw, True))
+
+    def potential(self, d=delta) -> sm.Expr:
+        """Elastic energy stored at overlap ``d`` (J): the integral of the stiffness part."""
+        n = P["n_imp"]
+        return P["k_imp"] * d ** (n + 1) / (n + 1)
+
+    def functions(self) -> list[LawFunction]:
+        return [
+            LawFunction("impact_normal_force", (delta, delta_dot), self.normal_force(),
+                        "Normal force (N) on the circle along roller->circle; delta (m) > 0, delta_dot (m/s)."),
+            LawFunction("impact_potential", (delta,), self.potential(),
+                        "Elastic energy (J) stored in one contact at overlap delta (m)."),
+        ]
+
+
+class SliderFriction:
+    """Slider friction on the band, eqs 38-39 as corrected in model-notes section 2.
+
+    ``mu(u)`` rises linearly to ``mu_s`` inside the static band ``gamma``, falls to ``mu_k``
+    by ``1.5 gamma`` and stays there; the torque on the band is ``-R_bo mu(u_b) m_b g``.
+    """
+
+    name = "slider_coulomb"
+
+    def mu(self, u=speed) -> sm.Expr:
+        mu_s, mu_k, gamma = P["mu_s"], P["mu_k"], P["gamma"]
+        a = sm.Abs(u)
+        mag = sm.Piecewise(
+            (mu_s * a / gamma, a <= gamma),
+            (mu_s - 2 * (mu_s - mu_k) * (a - gamma) / gamma, a <= sm.Rational(3, 2) * gamma),
+            (mu_k, True),
+        )
+        return sm.sign(u) * mag
+
+    def torque(self, u=speed) -> sm.Expr:
+        return -P["R_bo"] * self.mu(u) * P["m_b"] * P["g"]
+
+    def functions(self) -> list[LawFunction]:
+        return [
+            LawFunction("slider_mu", (speed,), self.mu(),
+                        "Slider friction coefficient (1) at band speed `speed` (rad/s)."),
+            LawFunction("slider_torque", (speed,), self.torque(),
+                        "Slider friction torque (N m) on the band about n3 at band speed `speed` (rad/s)."),
+        ]
+
+
+class ArmSpringDamper:
+    """Torsional spring-damper between each arm and the band, eqs 36-37 (corrected).
+
+    ``V = k_c phi^2 / 2`` and ``D = b_c phi_dot^2 / 2`` with ``phi = q_i - q_b``; the torque on
+    the arm is ``-(k_c phi + b_c phi_dot)`` and the reaction acts on the band.
+    """
+
+    name = "arm_spring_damper"
+
+    def torque_on_arm(self, phi, phi_dot) -> sm.Expr:
+        return -(P["k_c"] * phi + P["b_c"] * phi_dot)
+
+    def potential(self, phi) -> sm.Expr:
+        return P["k_c"] * phi**2 / 2
+
+
+LAWS = (HuntCrossleyImpact(), SliderFriction())

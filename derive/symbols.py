@@ -1,0 +1,69 @@
+"""Symbols of the Spiral Zipper model: coordinates, speeds and the flat parameter vector.
+
+The order of ``PARAMETERS`` *is* the order of the runtime parameter array ``p``; the
+generated module re-exports it as ``PARAM_NAMES``. New parameters are appended at the end so
+that saved parameter files stay readable.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import sympy as sm
+import sympy.physics.mechanics as me
+
+
+@dataclass(frozen=True)
+class Param:
+    """One entry of the flat parameter vector."""
+
+    name: str
+    unit: str
+    doc: str
+
+    @property
+    def symbol(self) -> sm.Symbol:
+        return sm.Symbol(self.name, real=True)
+
+
+PARAMETERS: tuple[Param, ...] = (
+    Param("I_W", "kg*m^2", "wheel (with rollers) inertia about the tube axis n3"),
+    Param("I_B", "kg*m^2", "band tube inertia about n3 (J_B in the thesis)"),
+    Param("m_c", "kg", "mass of one small circle (particle at the arm tip)"),
+    Param("R_bo", "m", "band inner radius: radius of the arm hinges Q_i"),
+    Param("d", "m", "arm length from hinge Q_i to circle centre P_i"),
+    Param("t_c", "m", "radius of a small circle"),
+    Param("R_w", "m", "radius of the roller centres on the wheel"),
+    Param("t_r", "m", "roller radius"),
+    Param("n_rollers", "1", "number of rollers N_r (integer stored as float)"),
+    Param("k_c", "N*m/rad", "torsional stiffness of each arm"),
+    Param("b_c", "N*m*s/rad", "torsional damping of each arm"),
+    Param("k_imp", "N/m^n", "impact stiffness in F = delta^n (k_imp + b_imp delta_dot)"),
+    Param("b_imp", "N*s/m^(n+1)", "impact damping in F = delta^n (k_imp + b_imp delta_dot)"),
+    Param("n_imp", "1", "impact exponent n (thesis: 3)"),
+    Param("impact_clamp", "1", "1: clamp the impact force at 0 (no attraction); 0: thesis formula as printed"),
+    Param("mu_s", "1", "slider static (peak) friction coefficient"),
+    Param("mu_k", "1", "slider kinetic friction coefficient"),
+    Param("gamma", "rad/s", "slider static band: band speed below which friction is regularised"),
+    Param("m_b", "kg", "mass whose weight loads the slider (normal force m_b g)"),
+    Param("g", "m/s^2", "gravitational acceleration"),
+    Param("drive_mode", "1", "0: prescribed wheel motion (drive array is speed); 1: motor torque"),
+)
+
+PARAM_NAMES: tuple[str, ...] = tuple(p.name for p in PARAMETERS)
+P = {p.name: p.symbol for p in PARAMETERS}
+
+t = me.dynamicsymbols._t
+
+# Reduced, rotation-invariant quantities that the kernels are written in.
+phi, rho = sm.symbols("phi rho", real=True)  # arm angle q_i - q_b; roller angle seen from Q_i
+alpha, beta = sm.symbols("alpha beta", real=True)  # circle hinge offset on band; roller offset on wheel
+
+
+def circle_coordinates(i: int | str):
+    """Return ``(q_i, u_i)`` dynamic symbols of circle ``i``."""
+    q = me.dynamicsymbols(f"q_{i}")
+    u = me.dynamicsymbols(f"u_{i}")
+    return q, u
+
+
+q_w, q_b, u_w, u_b = me.dynamicsymbols("q_w q_b u_w u_b")

@@ -1,0 +1,315 @@
+# ----------------------------------------------------------------------------
+# szdyn generated code (assembly) -- DO NOT EDIT.
+# Source: derive/codegen.py (run as `python -m derive`), SymPy 1.14.0.
+# Regenerate with `make derive`; tests check that this file is reproduced byte for byte.
+# State order: x = [q_w, q_b, q_1 .. q_Nc, u_w, u_b, u_1 .. u_Nc]  (rad, rad/s)
+# Parameter order (p): I_W, I_B, m_c, R_bo, d, t_c, R_w, t_r, n_rollers, k_c, b_c, k_imp, b_imp, n_imp, impact_clamp, mu_s, mu_k, gamma, m_b, g, drive_mode
+# ----------------------------------------------------------------------------
+"""Spiral Zipper right-hand side: assembly of the generated kernels.
+
+State vector: x = [q_w, q_b, q_1 .. q_Nc, u_w, u_b, u_1 .. u_Nc]  (rad, rad/s); N_c = len(x)//2 - 2.
+Parameter vector p: float64 array in the order of ``PARAM_NAMES``; see ``PARAM_DOCS``.
+Drive array (see docs/CONTRACT.md): [K, t_0..t_{K-1}, v_0..v_{K-1}, c_0..c_{K-1}].
+Imports only math, numpy and numba.
+"""
+import math
+
+import numba as nb
+import numpy as np
+
+from .kernels import (circle_energy, circle_kernel, contact_distance, contact_kernel,
+                      core_energy, core_kernel, impact_normal_force, impact_potential,
+                      slider_torque)
+
+PARAM_NAMES = (
+    "I_W",
+    "I_B",
+    "m_c",
+    "R_bo",
+    "d",
+    "t_c",
+    "R_w",
+    "t_r",
+    "n_rollers",
+    "k_c",
+    "b_c",
+    "k_imp",
+    "b_imp",
+    "n_imp",
+    "impact_clamp",
+    "mu_s",
+    "mu_k",
+    "gamma",
+    "m_b",
+    "g",
+    "drive_mode",
+)
+PARAM_INDEX = {name: i for i, name in enumerate(PARAM_NAMES)}
+PARAM_DOCS = {
+    "I_W": ("kg*m^2", "wheel (with rollers) inertia about the tube axis n3"),
+    "I_B": ("kg*m^2", "band tube inertia about n3 (J_B in the thesis)"),
+    "m_c": ("kg", "mass of one small circle (particle at the arm tip)"),
+    "R_bo": ("m", "band inner radius: radius of the arm hinges Q_i"),
+    "d": ("m", "arm length from hinge Q_i to circle centre P_i"),
+    "t_c": ("m", "radius of a small circle"),
+    "R_w": ("m", "radius of the roller centres on the wheel"),
+    "t_r": ("m", "roller radius"),
+    "n_rollers": ("1", "number of rollers N_r (integer stored as float)"),
+    "k_c": ("N*m/rad", "torsional stiffness of each arm"),
+    "b_c": ("N*m*s/rad", "torsional damping of each arm"),
+    "k_imp": ("N/m^n", "impact stiffness in F = delta^n (k_imp + b_imp delta_dot)"),
+    "b_imp": ("N*s/m^(n+1)", "impact damping in F = delta^n (k_imp + b_imp delta_dot)"),
+    "n_imp": ("1", "impact exponent n (thesis: 3)"),
+    "impact_clamp": ("1", "1: clamp the impact force at 0 (no attraction); 0: thesis formula as printed"),
+    "mu_s": ("1", "slider static (peak) friction coefficient"),
+    "mu_k": ("1", "slider kinetic friction coefficient"),
+    "gamma": ("rad/s", "slider static band: band speed below which friction is regularised"),
+    "m_b": ("kg", "mass whose weight loads the slider (normal force m_b g)"),
+    "g": ("m/s^2", "gravitational acceleration"),
+    "drive_mode": ("1", "0: prescribed wheel motion (drive array is speed); 1: motor torque"),
+}
+
+_I_I_W = 0
+_I_I_B = 1
+_I_m_c = 2
+_I_R_bo = 3
+_I_d = 4
+_I_t_c = 5
+_I_R_w = 6
+_I_t_r = 7
+_I_n_rollers = 8
+_I_k_c = 9
+_I_b_c = 10
+_I_k_imp = 11
+_I_b_imp = 12
+_I_n_imp = 13
+_I_impact_clamp = 14
+_I_mu_s = 15
+_I_mu_k = 16
+_I_gamma = 17
+_I_m_b = 18
+_I_g = 19
+_I_drive_mode = 20
+
+TWO_PI = 2.0 * math.pi
+
+
+@nb.njit(cache=True)
+def drive_eval(drive, t):
+    """Wheel drive at time t: (angle rad, speed rad/s, acceleration rad/s^2).
+
+    With torque drive the 'speed' slot holds the motor torque (N m). Piecewise linear in the
+    knots, held constant before the first and after the last knot; the angle is the exact
+    integral of the speed.
+    """
+    K = int(drive[0])
+    ts = drive[1:1 + K]
+    vs = drive[1 + K:1 + 2 * K]
+    cs = drive[1 + 2 * K:1 + 3 * K]
+    if K == 1 or t <= ts[0]:
+        return cs[0] + vs[0] * (t - ts[0]), vs[0], 0.0
+    if t >= ts[K - 1]:
+        return cs[K - 1] + vs[K - 1] * (t - ts[K - 1]), vs[K - 1], 0.0
+    lo = 0
+    hi = K - 1
+    while hi - lo > 1:  # bisection: sampled profiles may have many knots
+        mid = (lo + hi) // 2
+        if ts[mid] <= t:
+            lo = mid
+        else:
+            hi = mid
+    s = t - ts[lo]
+    a = (vs[hi] - vs[lo]) / (ts[hi] - ts[lo])
+    return cs[lo] + vs[lo] * s + 0.5 * a * s * s, vs[lo] + a * s, a
+
+
+@nb.njit(cache=True)
+def contact_window(p, n_circles):
+    """Number of circles to test on each roller pass (O(1) in N_c, all of them if small).
+
+    A roller centre (radius R_w) and a circle centre closer than t_c + t_r subtend at O an
+    angle of at most asin((t_c + t_r)/R_w); a circle centre lies within asin(d/R_bo) of its
+    hinge Q_i whatever the arm angle. Hinges are evenly spaced, so the candidates are the
+    hinges within the sum of the two angles of the roller.
+    """
+    reach = p[_I_t_c] + p[_I_t_r]
+    bound = math.asin(min(1.0, reach / p[_I_R_w])) + math.asin(min(1.0, p[_I_d] / p[_I_R_bo]))
+    half = int(bound / (TWO_PI / n_circles)) + 1
+    return min(2 * half + 1, n_circles)
+
+
+@nb.njit(cache=True)
+def _assemble(x, p, q_w, u_w, T_m, m_bi, m_ii, f, c_phi, s_phi):
+    """Arrowhead mass matrix and forcing of the whole system.
+
+    Fills the band-circle coupling ``m_bi``, circle diagonal ``m_ii`` and circle forcing ``f``
+    (each shape (N_c,)), and returns ``(M_ww, M_bb, F_w, F_b, n_contacts, V_contacts)``.
+    The wheel's angle, speed and torque are arguments because a prescribed drive overrides
+    the state.
+    """
+    nc = x.shape[0] // 2 - 2
+    n = nc + 2
+    q_b = x[1]
+    u_b = x[n + 1]
+    M_ww, M_bb, F_w, F_b = core_kernel(T_m, slider_torque(u_b, p), p)
+    for i in range(nc):
+        phi = x[2 + i] - q_b
+        c = math.cos(phi)
+        s = math.sin(phi)
+        c_phi[i] = c
+        s_phi[i] = s
+        dM_bb, M_bi, M_ii, dF_b, F_i = circle_kernel(phi, c, s, u_b, x[n + 2 + i], p)
+        M_bb += dM_bb
+        m_bi[i] = M_bi
+        m_ii[i] = M_ii
+        F_b += dF_b
+        f[i] = F_i
+
+    n_contacts = 0
+    V_contacts = 0.0
+    nr = int(p[_I_n_rollers] + 0.5)
+    reach = p[_I_t_c] + p[_I_t_r]
+    pitch = TWO_PI / nc
+    ncand = contact_window(p, nc)
+    cp = math.cos(pitch)
+    sp = math.sin(pitch)
+    for j in range(nr):
+        ang = q_w + TWO_PI * j / nr - q_b  # roller j's angle seen from the band
+        k = int(math.floor(ang / pitch + 0.5)) - (ncand - 1) // 2
+        rho = ang - k * pitch
+        cr = math.cos(rho)
+        sr = math.sin(rho)
+        for m in range(ncand):
+            i = (k + m) % nc
+            if contact_distance(cr, sr, c_phi[i], s_phi[i], p) < reach:
+                dist, delta_dot, v_slide, Gn_w, Gn_b, Gn_i, Gt_w, Gt_b, Gt_i = contact_kernel(
+                    cr, sr, c_phi[i], s_phi[i], u_w, u_b, x[n + 2 + i], p)
+                delta = reach - dist
+                f_n = impact_normal_force(delta, delta_dot, p)
+                F_w += f_n * Gn_w
+                F_b += f_n * Gn_b
+                f[i] += f_n * Gn_i
+                n_contacts += 1
+                V_contacts += impact_potential(delta, p)
+            # next hinge: rho -> rho - pitch, by rotation instead of new trig calls
+            cr, sr = cr * cp + sr * sp, sr * cp - cr * sp
+    return M_ww, M_bb, F_w, F_b, n_contacts, V_contacts
+
+
+@nb.njit(cache=True)
+def _wheel(t, x, p, drive):
+    """Wheel (angle, speed, acceleration, motor torque) from the drive or the state."""
+    n = x.shape[0] // 2
+    if p[_I_drive_mode] < 0.5:
+        q_w, u_w, acc_w = drive_eval(drive, t)
+        return q_w, u_w, acc_w, 0.0
+    _, T_m, _ = drive_eval(drive, t)
+    return x[0], x[n], 0.0, T_m
+
+
+@nb.njit(cache=True)
+def rhs(t, x, p, drive, out):
+    """Time derivative of the state: writes dx/dt (shape (2 N_c + 4,)) into ``out``.
+
+    Solves the arrowhead mass matrix in O(N_c) by the Schur complement on the band row:
+    the wheel row is decoupled, each circle row couples only to the band.
+    """
+    nc = x.shape[0] // 2 - 2
+    n = nc + 2
+    work = np.empty(5 * nc)
+    m_bi = work[0:nc]
+    m_ii = work[nc:2 * nc]
+    f = work[2 * nc:3 * nc]
+    q_w, u_w, acc_w, T_m = _wheel(t, x, p, drive)
+    M_ww, M_bb, F_w, F_b, _, _ = _assemble(x, p, q_w, u_w, T_m, m_bi, m_ii, f,
+                                           work[3 * nc:4 * nc], work[4 * nc:5 * nc])
+    for k in range(n):
+        out[k] = x[n + k]
+    out[0] = u_w
+    if p[_I_drive_mode] < 0.5:
+        out[n] = acc_w  # the motor supplies whatever torque the prescribed motion needs
+    else:
+        out[n] = F_w / M_ww
+    S = M_bb
+    r = F_b
+    for i in range(nc):
+        w = m_bi[i] / m_ii[i]
+        S -= w * m_bi[i]
+        r -= w * f[i]
+    du_b = r / S
+    out[n + 1] = du_b
+    for i in range(nc):
+        out[n + 2 + i] = (f[i] - m_bi[i] * du_b) / m_ii[i]
+
+
+@nb.njit(cache=True)
+def mass_matrix_forcing(t, x, p, drive):
+    """Dense mass matrix (n, n) and forcing (n,), n = N_c + 2, as assembled (for checks).
+
+    Rows are [w, b, 1..N_c]; M @ du = F. The wheel row is the free wheel's equation even
+    when the drive prescribes its motion.
+    """
+    nc = x.shape[0] // 2 - 2
+    n = nc + 2
+    work = np.empty(5 * nc)
+    q_w, u_w, acc_w, T_m = _wheel(t, x, p, drive)
+    M_ww, M_bb, F_w, F_b, _, _ = _assemble(x, p, q_w, u_w, T_m, work[0:nc], work[nc:2 * nc],
+                                           work[2 * nc:3 * nc], work[3 * nc:4 * nc], work[4 * nc:])
+    M = np.zeros((n, n))
+    F = np.zeros(n)
+    M[0, 0] = M_ww
+    M[1, 1] = M_bb
+    F[0] = F_w
+    F[1] = F_b
+    for i in range(nc):
+        M[1, 2 + i] = work[i]
+        M[2 + i, 1] = work[i]
+        M[2 + i, 2 + i] = work[nc + i]
+        F[2 + i] = work[2 * nc + i]
+    return M, F
+
+
+@nb.njit(cache=True)
+def wheel_reaction_torque(t, x, p, drive):
+    """Generalized force of the contacts on the wheel row (N m): minus the torque the motor
+    must add, beyond I_W times the wheel's acceleration, to hold a prescribed motion."""
+    nc = x.shape[0] // 2 - 2
+    work = np.empty(5 * nc)
+    q_w, u_w, acc_w, T_m = _wheel(t, x, p, drive)
+    M_ww, M_bb, F_w, F_b, _, _ = _assemble(x, p, q_w, u_w, 0.0, work[0:nc], work[nc:2 * nc],
+                                           work[2 * nc:3 * nc], work[3 * nc:4 * nc], work[4 * nc:])
+    return F_w
+
+
+@nb.njit(cache=True)
+def energy(x, p):
+    """Total mechanical energy (J): kinetic + arm springs + elastic contact energy.
+
+    Uses the wheel angle and speed from the state (meaningful for torque drive).
+    """
+    nc = x.shape[0] // 2 - 2
+    n = nc + 2
+    work = np.empty(5 * nc)
+    _, _, _, _, _, V = _assemble(x, p, x[0], x[n], 0.0, work[0:nc], work[nc:2 * nc],
+                                 work[2 * nc:3 * nc], work[3 * nc:4 * nc], work[4 * nc:])
+    E = core_energy(x[n], x[n + 1], p) + V
+    for i in range(nc):
+        E += circle_energy(x[2 + i] - x[1], work[3 * nc + i], work[4 * nc + i], x[n + 1], x[n + 2 + i], p)
+    return E
+
+
+@nb.njit(cache=True)
+def contact_count(t, x, p, drive):
+    """Number of roller-circle pairs in contact at state x and time t."""
+    nc = x.shape[0] // 2 - 2
+    work = np.empty(5 * nc)
+    q_w, u_w, acc_w, T_m = _wheel(t, x, p, drive)
+    _, _, _, _, nct, _ = _assemble(x, p, q_w, u_w, T_m, work[0:nc], work[nc:2 * nc],
+                                   work[2 * nc:3 * nc], work[3 * nc:4 * nc], work[4 * nc:])
+    return nct
+
+
+def state_names(n_circles):
+    """Names of the state entries, in order."""
+    qs = ["q_w", "q_b"] + [f"q_{i}" for i in range(1, n_circles + 1)]
+    return qs + ["u" + s[1:] for s in qs]

@@ -1,0 +1,1 @@
+"""szdyn: dynamics of the Spiral Zipper friction-driven prismatic actuator."""
