@@ -22,7 +22,7 @@ def drive_eval(drive, t):
     ts = drive[1:1 + K]
     vs = drive[1 + K:1 + 2 * K]
     cs = drive[1 + 2 * K:1 + 3 * K]
-    if K == 1 or t <= ts[0]:
+    if K == 1 or t < ts[0]:
         return cs[0] + vs[0] * (t - ts[0]), vs[0], 0.0
     if t >= ts[K - 1]:
         return cs[K - 1] + vs[K - 1] * (t - ts[K - 1]), vs[K - 1], 0.0
@@ -229,3 +229,23 @@ def state_names(n_circles):
     """Names of the state entries, in order."""
     qs = ["q_w", "q_b"] + [f"q_{i}" for i in range(1, n_circles + 1)]
     return qs + ["u" + s[1:] for s in qs]
+
+
+def make_ivp_fun(p, drive):
+    """A ``scipy.integrate.solve_ivp``-compatible ``fun(t, y) -> dy/dt``.
+
+    ``p`` (parameter vector in ``PARAM_NAMES`` order) and ``drive`` (drive array) are
+    converted to float64 once here, not on every call.
+    """
+    p = np.ascontiguousarray(p, dtype=np.float64)
+    drive = np.ascontiguousarray(drive, dtype=np.float64)
+    if p.shape != (len(PARAM_NAMES),):
+        raise ValueError(f"p must have shape ({len(PARAM_NAMES)},) in PARAM_NAMES order, got {p.shape}")
+
+    def fun(t, y):
+        y = np.ascontiguousarray(y, dtype=np.float64)
+        out = np.empty_like(y)
+        rhs(float(t), y, p, drive, out)
+        return out
+
+    return fun

@@ -146,8 +146,8 @@ def evaluate_knots(t_k, v_k, c_k, t):
         # segment lo with t_k[lo] <= t < t_k[lo+1] (right-continuous, like drive_eval)
         lo = np.clip(np.searchsorted(t_k, t, side="right") - 1, 0, K - 2)
         slope = (v_k[lo + 1] - v_k[lo]) / (t_k[lo + 1] - t_k[lo])
-        inside = (t > t_k[0]) & (t < t_k[-1])
-        before = t <= t_k[0]
+        inside = (t >= t_k[0]) & (t < t_k[-1])  # right-continuous at t_0 too
+        before = t < t_k[0]
         accel = np.where(inside, slope, 0.0)
         speed = np.where(inside, v_k[lo] + slope * (t - t_k[lo]),
                          np.where(before, v_k[0], v_k[-1]))

@@ -15,8 +15,6 @@ import difflib
 import json
 import math
 import numbers
-import os
-import tempfile
 import warnings
 from dataclasses import dataclass
 from pathlib import Path
@@ -24,6 +22,8 @@ from types import MappingProxyType
 from typing import Mapping
 
 import numpy as np
+
+from .io import write_json
 
 from szdyn.errors import ParameterError
 from szdyn.geometry import BandGeometry
@@ -435,22 +435,7 @@ class ParameterSet:
             Destination file; either the old content or the complete new content is there
             afterwards, never a partial file.
         """
-        path = Path(path)
-        text = json.dumps(self.to_dict(), indent=2, allow_nan=False) + "\n"
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp",
-                                   dir=path.parent if str(path.parent) else ".")
-        try:
-            with os.fdopen(fd, "w", encoding="utf-8") as fh:
-                fh.write(text)
-                fh.flush()
-                os.fsync(fh.fileno())
-            os.replace(tmp, path)
-        except BaseException:
-            try:
-                os.unlink(tmp)
-            except OSError:
-                pass
-            raise
+        write_json(path, self.to_dict())
 
     @classmethod
     def from_json(cls, path, *, missing: str = "defaults") -> "ParameterSet":

@@ -1,0 +1,52 @@
+"""Atomic file output: a reader sees the old file or the complete new one, never a part."""
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+from pathlib import Path
+from typing import Mapping
+
+import numpy as np
+
+
+def atomic_write_bytes(path, data: bytes) -> Path:
+    """Write ``data`` to ``path`` via a temp file in the same directory and ``os.replace``."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            fh.write(data)
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        try:
+            os.unlink(tmp)
+        except OSError:
+            pass
+        raise
+    return path
+
+
+def atomic_write_text(path, text: str) -> Path:
+    return atomic_write_bytes(path, text.encode("utf-8"))
+
+
+def write_json(path, obj) -> Path:
+    """JSON with NaN/inf refused (they are not JSON and would hide a failure)."""
+    return atomic_write_text(path, json.dumps(obj, indent=2, allow_nan=False, sort_keys=False) + "\n")
+
+
+def write_csv(path, columns: Mapping[str, np.ndarray]) -> Path:
+    """Columns of equal length as a plain CSV with one header row (units live beside it, in
+    the JSON that describes the file, so that any CSV reader can load it)."""
+    names = list(columns)
+    data = np.column_stack([np.asarray(columns[n], dtype=float) for n in names])
+    if not np.all(np.isfinite(data)):
+        bad = [n for n in names if not np.all(np.isfinite(columns[n]))]
+        raise ValueError(f"refusing to write non-finite values to {path} (columns {bad})")
+    lines = [",".join(names)]
+    body = "\n".join(",".join(f"{v:.10g}" for v in row) for row in data)
+    return atomic_write_text(path, "\n".join(lines) + "\n" + body + "\n")
