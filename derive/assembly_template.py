@@ -11,6 +11,12 @@ TWO_PI = 2.0 * math.pi
 
 
 @nb.njit(cache=True)
+def n_circles_of(n_state):
+    """N_c from the state length 2 (N_c + 2) + N_AUX."""
+    return (n_state - N_AUX) // 2 - 2
+
+
+@nb.njit(cache=True)
 def drive_eval(drive, t):
     """Wheel drive at time t: (angle rad, speed rad/s, acceleration rad/s^2).
 
@@ -55,6 +61,25 @@ def contact_window(p, n_circles):
 
 
 @nb.njit(cache=True)
+def slip_speed(p, u_w, u_b):
+    """Sliding speed (m/s) of the rollers on the band at the contact radius R_w + t_r."""
+    return (p[_I_R_w] + p[_I_t_r]) * (u_w - u_b)
+
+
+@nb.njit(cache=True)
+def traction_torque(x, p, u_w):
+    """Torque (N m) on the band of the lumped wheel-band friction counter-model (0 for impacts)."""
+    model = int(p[_I_contact_model] + 0.5)
+    if model == 0:
+        return 0.0
+    n = n_circles_of(x.shape[0]) + 2
+    v = slip_speed(p, u_w, x[n + 1])
+    if model == 1:
+        return (p[_I_R_w] + p[_I_t_r]) * traction_coulomb_force(v, p)
+    return (p[_I_R_w] + p[_I_t_r]) * lugre_force(v, x[2 * n], p)
+
+
+@nb.njit(cache=True)
 def _assemble(x, p, q_w, u_w, T_m, m_bi, m_ii, f, c_phi, s_phi):
     """Arrowhead mass matrix and forcing of the whole system.
 
@@ -63,11 +88,12 @@ def _assemble(x, p, q_w, u_w, T_m, m_bi, m_ii, f, c_phi, s_phi):
     The wheel's angle, speed and torque are arguments because a prescribed drive overrides
     the state.
     """
-    nc = x.shape[0] // 2 - 2
+    nc = n_circles_of(x.shape[0])
     n = nc + 2
     q_b = x[1]
     u_b = x[n + 1]
-    M_ww, M_bb, F_w, F_b = core_kernel(T_m, slider_torque(u_b, p), p)
+    model = int(p[_I_contact_model] + 0.5)
+    M_ww, M_bb, F_w, F_b = core_kernel(T_m, slider_torque(u_b, p), traction_torque(x, p, u_w), p)
     for i in range(nc):
         phi = x[2 + i] - q_b
         c = math.cos(phi)
@@ -83,6 +109,8 @@ def _assemble(x, p, q_w, u_w, T_m, m_bi, m_ii, f, c_phi, s_phi):
 
     n_contacts = 0
     V_contacts = 0.0
+    if model != 0:  # friction counter-models: no impacts
+        return M_ww, M_bb, F_w, F_b, n_contacts, V_contacts
     nr = int(p[_I_n_rollers] + 0.5)
     reach = p[_I_t_c] + p[_I_t_r]
     pitch = TWO_PI / nc
@@ -125,12 +153,12 @@ def _wheel(t, x, p, drive):
 
 @nb.njit(cache=True)
 def rhs(t, x, p, drive, out):
-    """Time derivative of the state: writes dx/dt (shape (2 N_c + 4,)) into ``out``.
+    """Time derivative of the state: writes dx/dt (shape (2 N_c + 4 + N_AUX,)) into ``out``.
 
     Solves the arrowhead mass matrix in O(N_c) by the Schur complement on the band row:
     the wheel row is decoupled, each circle row couples only to the band.
     """
-    nc = x.shape[0] // 2 - 2
+    nc = n_circles_of(x.shape[0])
     n = nc + 2
     work = np.empty(5 * nc)
     m_bi = work[0:nc]
@@ -142,6 +170,10 @@ def rhs(t, x, p, drive, out):
     for k in range(n):
         out[k] = x[n + k]
     out[0] = u_w
+    if int(p[_I_contact_model] + 0.5) == 2:
+        out[2 * n] = lugre_z_dot(slip_speed(p, u_w, x[n + 1]), x[2 * n], p)
+    else:
+        out[2 * n] = 0.0
     if p[_I_drive_mode] < 0.5:
         out[n] = acc_w  # the motor supplies whatever torque the prescribed motion needs
     else:
@@ -165,7 +197,7 @@ def mass_matrix_forcing(t, x, p, drive):
     Rows are [w, b, 1..N_c]; M @ du = F. The wheel row is the free wheel's equation even
     when the drive prescribes its motion.
     """
-    nc = x.shape[0] // 2 - 2
+    nc = n_circles_of(x.shape[0])
     n = nc + 2
     work = np.empty(5 * nc)
     q_w, u_w, acc_w, T_m = _wheel(t, x, p, drive)
@@ -187,9 +219,9 @@ def mass_matrix_forcing(t, x, p, drive):
 
 @nb.njit(cache=True)
 def wheel_reaction_torque(t, x, p, drive):
-    """Generalized force of the contacts on the wheel row (N m): minus the torque the motor
-    must add, beyond I_W times the wheel's acceleration, to hold a prescribed motion."""
-    nc = x.shape[0] // 2 - 2
+    """Generalized force of the contacts (or friction) on the wheel row (N m): minus the torque
+    the motor must add, beyond I_W times the wheel's acceleration, to hold a prescribed motion."""
+    nc = n_circles_of(x.shape[0])
     work = np.empty(5 * nc)
     q_w, u_w, acc_w, T_m = _wheel(t, x, p, drive)
     M_ww, M_bb, F_w, F_b, _, _ = _assemble(x, p, q_w, u_w, 0.0, work[0:nc], work[nc:2 * nc],
@@ -203,7 +235,7 @@ def energy(x, p):
 
     Uses the wheel angle and speed from the state (meaningful for torque drive).
     """
-    nc = x.shape[0] // 2 - 2
+    nc = n_circles_of(x.shape[0])
     n = nc + 2
     work = np.empty(5 * nc)
     _, _, _, _, _, V = _assemble(x, p, x[0], x[n], 0.0, work[0:nc], work[nc:2 * nc],
@@ -217,7 +249,7 @@ def energy(x, p):
 @nb.njit(cache=True)
 def contact_count(t, x, p, drive):
     """Number of roller-circle pairs in contact at state x and time t."""
-    nc = x.shape[0] // 2 - 2
+    nc = n_circles_of(x.shape[0])
     work = np.empty(5 * nc)
     q_w, u_w, acc_w, T_m = _wheel(t, x, p, drive)
     _, _, _, _, nct, _ = _assemble(x, p, q_w, u_w, T_m, work[0:nc], work[nc:2 * nc],
@@ -228,7 +260,12 @@ def contact_count(t, x, p, drive):
 def state_names(n_circles):
     """Names of the state entries, in order."""
     qs = ["q_w", "q_b"] + [f"q_{i}" for i in range(1, n_circles + 1)]
-    return qs + ["u" + s[1:] for s in qs]
+    return qs + ["u" + s[1:] for s in qs] + list(AUX_STATES)
+
+
+def state_size(n_circles):
+    """Length of the state vector for N_c circles."""
+    return 2 * (n_circles + 2) + N_AUX
 
 
 def make_ivp_fun(p, drive):

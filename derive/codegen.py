@@ -12,9 +12,11 @@ from sympy.printing.pycode import PythonCodePrinter
 
 from .force_laws import LAWS, LawFunction
 from .kernels import Kernel, energy_kernels, kernels
-from .symbols import PARAMETERS, PARAM_NAMES
+import hashlib
 
-STATE_ORDER = "x = [q_w, q_b, q_1 .. q_Nc, u_w, u_b, u_1 .. u_Nc]  (rad, rad/s)"
+from .symbols import AUX_STATES, PARAMETERS, PARAM_NAMES
+
+STATE_ORDER = "x = [q_w, q_b, q_1 .. q_Nc, u_w, u_b, u_1 .. u_Nc, " + ", ".join(AUX_STATES) + "]  (rad, rad/s, m)"
 
 
 class _Printer(PythonCodePrinter):
@@ -76,16 +78,20 @@ def kernels_module() -> str:
     return "".join(parts)
 
 
-def spiral_zipper_module() -> str:
+def spiral_zipper_module(kernels_text: str) -> str:
     index_lines = "\n".join(f"_I_{p.name} = {i}" for i, p in enumerate(PARAMETERS))
     names = ",\n".join(f'    "{p.name}"' for p in PARAMETERS)
     units = ",\n".join(f'    "{p.name}": ("{p.unit}", "{p.doc}")' for p in PARAMETERS)
+    bounds = ",\n".join(f'    "{p.name}": "{p.bound}"' for p in PARAMETERS)
+    # Numba's cache is keyed on this file's own stamp, not on the kernels it calls: carrying the
+    # kernels' hash here makes any kernel change change this file too (new cache entries).
+    digest = hashlib.sha256(kernels_text.encode()).hexdigest()
     template = (Path(__file__).with_name("assembly_template.py")).read_text()
     body = template.split("# --- template begins ---\n", 1)[1]
     return (
         _header("assembly")
         + '"""Spiral Zipper right-hand side: assembly of the generated kernels.\n\n'
-        f"State vector: {STATE_ORDER}; N_c = len(x)//2 - 2.\n"
+        f"State vector: {STATE_ORDER};\nN_c = (len(x) - N_AUX)//2 - 2.\n"
         "Parameter vector p: float64 array in the order of ``PARAM_NAMES``; see ``PARAM_DOCS``.\n"
         "Drive array (see docs/CONTRACT.md): [K, t_0..t_{K-1}, v_0..v_{K-1}, c_0..c_{K-1}].\n"
         "Imports only math, numpy and numba.\n"
@@ -93,10 +99,16 @@ def spiral_zipper_module() -> str:
         "import math\n\nimport numba as nb\nimport numpy as np\n\n"
         "from .kernels import (circle_energy, circle_kernel, contact_distance, contact_kernel,\n"
         "                      core_energy, core_kernel, impact_normal_force, impact_potential,\n"
-        "                      slider_torque)\n\n"
+        "                      lugre_force, lugre_z_dot, slider_torque, traction_coulomb_force)\n\n"
+        f"KERNELS_SHA256 = \"{digest}\"\n\n"
         f"PARAM_NAMES = (\n{names},\n)\n"
         "PARAM_INDEX = {name: i for i, name in enumerate(PARAM_NAMES)}\n"
-        f"PARAM_DOCS = {{\n{units},\n}}\n\n"
+        "#: name -> (SI unit, meaning)\n"
+        f"PARAM_DOCS = {{\n{units},\n}}\n"
+        "#: name -> admissible values, checked by szdyn.params.validate\n"
+        f"PARAM_BOUNDS = {{\n{bounds},\n}}\n\n"
+        f"AUX_STATES = {AUX_STATES!r}\n"
+        "N_AUX = len(AUX_STATES)\n\n"
         f"{index_lines}\n"
         + body
     )
@@ -113,10 +125,11 @@ INIT = '''"""Generated Spiral Zipper model code (numpy + numba only; no SymPy).
 def generate(out_dir: Path) -> list[Path]:
     """Write all generated files into ``out_dir``; return their paths."""
     out_dir.mkdir(parents=True, exist_ok=True)
+    kernels_text = kernels_module()
     files = {
         "__init__.py": _header("package") + INIT,
-        "kernels.py": kernels_module(),
-        "spiral_zipper.py": spiral_zipper_module(),
+        "kernels.py": kernels_text,
+        "spiral_zipper.py": spiral_zipper_module(kernels_text),
     }
     written = []
     for name, text in files.items():

@@ -100,4 +100,54 @@ class ArmSpringDamper:
         return P["k_c"] * phi**2 / 2
 
 
-LAWS = (HuntCrossleyImpact(), SliderFriction())
+
+def _stribeck(v):
+    """Friction coefficient magnitude with Stribeck peak: mu_wk + (mu_ws - mu_wk) exp(-(v/v_ws)^2)."""
+    return P["mu_wk"] + (P["mu_ws"] - P["mu_wk"]) * sm.exp(-((v / P["v_ws"]) ** 2))
+
+
+slip, z = sm.symbols("slip z", real=True)
+
+
+class TractionCoulomb:
+    """Counter-model: the rollers drive the band by sliding friction, Coulomb with Stribeck peak.
+
+    ``F = F_nw mu(v) tanh(v / v_weps)`` along the sliding velocity ``v = r_c (u_w - u_b)``,
+    ``r_c = R_w + t_r``; the tanh regularises sign(v) (``v_weps`` small) so that the law has
+    a stick regime an explicit integrator can resolve.
+    """
+
+    name = "traction_coulomb"
+
+    def force(self, v=slip) -> sm.Expr:
+        return P["F_nw"] * _stribeck(v) * sm.tanh(v / P["v_weps"])
+
+    def functions(self) -> list[LawFunction]:
+        return [LawFunction("traction_coulomb_force", (slip,), self.force(),
+                            "Friction force (N) on the band along its motion at sliding speed slip (m/s).")]
+
+
+class TractionLuGre:
+    """Counter-model: LuGre dynamic friction between rollers and band (Canudas de Wit 1995).
+
+    ``dz/dt = v - sigma0 |v| z / g(v)``, ``g(v) = F_nw mu(v)`` (N), and
+    ``F = sigma0 z + sigma1 dz/dt + sigma2 v``; ``z`` (m) is the mean bristle deflection.
+    """
+
+    name = "traction_lugre"
+
+    def z_dot(self, v=slip, zz=z) -> sm.Expr:
+        return v - P["sigma0"] * sm.Abs(v) * zz / (P["F_nw"] * _stribeck(v))
+
+    def force(self, v=slip, zz=z) -> sm.Expr:
+        return P["sigma0"] * zz + P["sigma1"] * self.z_dot(v, zz) + P["sigma2"] * v
+
+    def functions(self) -> list[LawFunction]:
+        return [
+            LawFunction("lugre_z_dot", (slip, z), self.z_dot(), "Bristle deflection rate (m/s)."),
+            LawFunction("lugre_force", (slip, z), self.force(),
+                        "LuGre friction force (N) on the band at sliding speed slip (m/s), deflection z (m)."),
+        ]
+
+
+LAWS = (HuntCrossleyImpact(), SliderFriction(), TractionCoulomb(), TractionLuGre())

@@ -5,8 +5,9 @@ circles do not couple to each other and the wheel couples to the rest only throu
 forces. So the equations are a sum of three kinds of contribution, each derived once with
 ``KanesMethod`` on a three-speed system ``u = [u_w, u_b, u_i]``:
 
-* ``core``: wheel and band inertia, motor torque ``T_m`` and the band torque ``tau_b`` of the
-  band's load laws (slider friction, ...);
+* ``core``: wheel and band inertia, motor torque ``T_m``, the band torque ``tau_b`` of the
+  band's load laws (slider friction, ...) and the torque pair ``tau_wb`` (on the band; its
+  reaction on the wheel) of a lumped wheel-band friction law (the counter-models);
 * ``circle``: one generic circle (hinge offset ``alpha``) with its arm spring-damper;
 * ``contact``: one generic roller (offset ``beta``) touching that circle, with symbolic normal
   and tangential forces ``f_n`` and ``f_t`` supplied by a force law.
@@ -26,10 +27,10 @@ import sympy as sm
 import sympy.physics.mechanics as me
 
 from . import kinematics as kin
-from .force_laws import ArmSpringDamper, HuntCrossleyImpact, SliderFriction
+from .force_laws import ArmSpringDamper, HuntCrossleyImpact, SliderFriction, TractionCoulomb, TractionLuGre, z as z_lugre
 from .symbols import P, alpha, beta, circle_coordinates, phi, q_b, q_w, rho, t, u_b, u_w
 
-f_n, f_t, T_m, tau_b = sm.symbols("f_n f_t T_m tau_b", real=True)
+f_n, f_t, T_m, tau_b, tau_wb = sm.symbols("f_n f_t T_m tau_b tau_wb", real=True)
 c_phi, s_phi, c_rho, s_rho = sm.symbols("c_phi s_phi c_rho s_rho", real=True)
 # Plain-symbol stand-ins for the speeds inside emitted kernels.
 U_W, U_B, U_I = sm.symbols("u_w u_b u_i", real=True)
@@ -72,6 +73,19 @@ def _generic(relative: bool = True):
     return mech, circle, roller, q_i, u_i
 
 
+def core_loads(mech: kin.Mechanism, motor, band, pair):
+    """Motor torque on the wheel, band load torque, and a friction torque pair wheel -> band."""
+    return [(mech.W, (motor - pair) * mech.N.z), (mech.B, (band + pair) * mech.N.z)]
+
+
+def traction_torque(model: int, slip_speed, z_sym):
+    """Torque on the band (N m) of counter-model ``model`` (1 Coulomb, 2 LuGre)."""
+    r_c = P["R_w"] + P["t_r"]
+    if model == 1:
+        return r_c * TractionCoulomb().force(slip_speed)
+    return r_c * TractionLuGre().force(slip_speed, z_sym)
+
+
 def arm_loads(c: kin.Circle, mech: kin.Mechanism):
     """Spring-damper torque pair between arm ``c.arm`` and the band (hinge frame)."""
     law = ArmSpringDamper()
@@ -96,12 +110,13 @@ def kernels() -> tuple[Kernel, ...]:
     # Core: wheel and band rigid bodies spinning about n3 through the fixed point O.
     wheel = me.RigidBody("wheel", mech.O, mech.W, sm.S.One, (me.inertia(mech.W, 0, 0, P["I_W"]), mech.O))
     band = me.RigidBody("band", mech.O, mech.B, sm.S.One, (me.inertia(mech.B, 0, 0, P["I_B"]), mech.O))
-    M, F = _kane_on(mech, q, u, [wheel, band], [(mech.W, T_m * mech.N.z), (mech.B, tau_b * mech.N.z)])
+    M, F = _kane_on(mech, q, u, [wheel, band], core_loads(mech, T_m, tau_b, tau_wb))
     core = Kernel(
-        "core_kernel", (T_m, tau_b),
+        "core_kernel", (T_m, tau_b, tau_wb),
         (("M_ww", _reduce(M[0, 0], q_i, u_i)), ("M_bb", _reduce(M[1, 1], q_i, u_i)),
          ("F_w", _reduce(F[0], q_i, u_i)), ("F_b", _reduce(F[1], q_i, u_i))),
-        "Wheel and band inertia (kg m^2) and generalized forces (N m) of motor torque T_m and band torque tau_b.",
+        "Wheel and band inertia (kg m^2) and generalized forces (N m) of motor torque T_m, band\n"
+        "torque tau_b and wheel-band friction torque pair tau_wb (on the band; reaction on the wheel).",
     )
     for (r, s) in [(0, 1), (1, 0), (0, 2), (2, 0), (1, 2), (2, 1), (2, 2)]:
         assert M[r, s] == 0
@@ -165,11 +180,13 @@ class FullSystem:
     n_rollers: int
 
 
-def full_system(n_circles: int, n_rollers: int) -> FullSystem:
+def full_system(n_circles: int, n_rollers: int, contact_model: int = 0) -> FullSystem:
     """Derive the complete model with one ``KanesMethod`` call (all loads in place).
 
     Frames are oriented from N (absolute angles), unlike the kernels. The motor torque is the
-    symbol ``T_m``; the slider friction and impact laws enter with their full expressions.
+    symbol ``T_m``; the slider friction and the contact laws enter with their full
+    expressions: impacts at every roller-circle pair (``contact_model = 0``) or the lumped
+    Coulomb (1) or LuGre (2, bristle deflection symbol ``z``) wheel-band friction.
     """
     mech = kin.mechanism()
     impact = HuntCrossleyImpact()
@@ -186,10 +203,11 @@ def full_system(n_circles: int, n_rollers: int) -> FullSystem:
         me.RigidBody("wheel", mech.O, mech.W, sm.S.One, (me.inertia(mech.W, 0, 0, P["I_W"]), mech.O)),
         me.RigidBody("band", mech.O, mech.B, sm.S.One, (me.inertia(mech.B, 0, 0, P["I_B"]), mech.O)),
     ] + [c.particle for c in circles]
-    loads = [(mech.W, T_m * mech.N.z), (mech.B, slider.torque(u_b) * mech.N.z)]
+    pair = 0 if contact_model == 0 else traction_torque(contact_model, (P["R_w"] + P["t_r"]) * (u_w - u_b), z_lugre)
+    loads = core_loads(mech, T_m, slider.torque(u_b), pair)
     for c in circles:
         loads += arm_loads(c, mech)
-        for rl in rollers:
+        for rl in (rollers if contact_model == 0 else []):
             g = kin.contact_geometry(mech, c, rl)
             fn = sm.Piecewise((impact.normal_force(g.delta, g.delta_dot), g.delta > 0), (0, True))
             _, cl = contact_loads(mech, c, rl, fn, 0)

@@ -19,6 +19,7 @@ class Param:
     name: str
     unit: str
     doc: str
+    bound: str  # validation: "> 0", ">= 0", "positive integer" or "one of 0,1,..."
 
     @property
     def symbol(self) -> sm.Symbol:
@@ -26,28 +27,42 @@ class Param:
 
 
 PARAMETERS: tuple[Param, ...] = (
-    Param("I_W", "kg*m^2", "wheel (with rollers) inertia about the tube axis n3"),
-    Param("I_B", "kg*m^2", "band tube inertia about n3 (J_B in the thesis)"),
-    Param("m_c", "kg", "mass of one small circle (particle at the arm tip)"),
-    Param("R_bo", "m", "band inner radius: radius of the arm hinges Q_i"),
-    Param("d", "m", "arm length from hinge Q_i to circle centre P_i"),
-    Param("t_c", "m", "radius of a small circle"),
-    Param("R_w", "m", "radius of the roller centres on the wheel"),
-    Param("t_r", "m", "roller radius"),
-    Param("n_rollers", "1", "number of rollers N_r (integer stored as float)"),
-    Param("k_c", "N*m/rad", "torsional stiffness of each arm"),
-    Param("b_c", "N*m*s/rad", "torsional damping of each arm"),
-    Param("k_imp", "N/m^n", "impact stiffness in F = delta^n (k_imp + b_imp delta_dot)"),
-    Param("b_imp", "N*s/m^(n+1)", "impact damping in F = delta^n (k_imp + b_imp delta_dot)"),
-    Param("n_imp", "1", "impact exponent n (thesis: 3)"),
-    Param("impact_clamp", "1", "1: clamp the impact force at 0 (no attraction); 0: thesis formula as printed"),
-    Param("mu_s", "1", "slider static (peak) friction coefficient"),
-    Param("mu_k", "1", "slider kinetic friction coefficient"),
-    Param("gamma", "rad/s", "slider static band: band speed below which friction is regularised"),
-    Param("m_b", "kg", "mass whose weight loads the slider (normal force m_b g)"),
-    Param("g", "m/s^2", "gravitational acceleration"),
-    Param("drive_mode", "1", "0: prescribed wheel motion (drive array is speed); 1: motor torque"),
+    Param("I_W", "kg*m^2", "wheel (with rollers) inertia about the tube axis n3", "> 0"),
+    Param("I_B", "kg*m^2", "band tube inertia about n3 (J_B in the thesis)", "> 0"),
+    Param("m_c", "kg", "mass of one small circle (particle at the arm tip)", "> 0"),
+    Param("R_bo", "m", "band inner radius: radius of the arm hinges Q_i", "> 0"),
+    Param("d", "m", "arm length from hinge Q_i to circle centre P_i", "> 0"),
+    Param("t_c", "m", "radius of a small circle", "> 0"),
+    Param("R_w", "m", "radius of the roller centres on the wheel", "> 0"),
+    Param("t_r", "m", "roller radius", "> 0"),
+    Param("n_rollers", "1", "number of rollers N_r (integer stored as float)", "positive integer"),
+    Param("k_c", "N*m/rad", "torsional stiffness of each arm", ">= 0"),
+    Param("b_c", "N*m*s/rad", "torsional damping of each arm", ">= 0"),
+    Param("k_imp", "N/m^n", "impact stiffness in F = delta^n (k_imp + b_imp delta_dot)", ">= 0"),
+    Param("b_imp", "N*s/m^(n+1)", "impact damping in F = delta^n (k_imp + b_imp delta_dot)", ">= 0"),
+    Param("n_imp", "1", "impact exponent n (thesis: 3)", "> 0"),
+    Param("impact_clamp", "1", "1: clamp the impact force at 0 (no attraction); 0: thesis formula as printed", "one of 0,1"),
+    Param("mu_s", "1", "slider static (peak) friction coefficient", ">= 0"),
+    Param("mu_k", "1", "slider kinetic friction coefficient", ">= 0"),
+    Param("gamma", "rad/s", "slider static band: band speed below which friction is regularised", "> 0"),
+    Param("m_b", "kg", "mass whose weight loads the slider (normal force m_b g)", ">= 0"),
+    Param("g", "m/s^2", "gravitational acceleration", "> 0"),
+    Param("drive_mode", "1", "0: prescribed wheel motion (drive array is speed); 1: motor torque", "one of 0,1"),
+    # Counter-models (issue 3): the wheel drives the band by tangential friction at the roller
+    # contact radius r_c = R_w + t_r instead of by impacts.
+    Param("contact_model", "1", "wheel-band transmission: 0 impacts (thesis), 1 Coulomb friction, 2 LuGre friction", "one of 0,1,2"),
+    Param("F_nw", "N", "friction counter-models: total normal force of the rollers on the band", ">= 0"),
+    Param("mu_ws", "1", "friction counter-models: static (breakaway) coefficient, roller on band", ">= 0"),
+    Param("mu_wk", "1", "friction counter-models: Coulomb (kinetic) coefficient, roller on band", ">= 0"),
+    Param("v_ws", "m/s", "friction counter-models: Stribeck sliding speed", "> 0"),
+    Param("v_weps", "m/s", "Coulomb counter-model: regularisation speed of sign(v) ~ tanh(v/v_weps)", "> 0"),
+    Param("sigma0", "N/m", "LuGre bristle stiffness", "> 0"),
+    Param("sigma1", "N*s/m", "LuGre bristle damping", ">= 0"),
+    Param("sigma2", "N*s/m", "LuGre viscous friction", ">= 0"),
 )
+
+#: Auxiliary states appended after the speeds: the LuGre bristle deflection z (m).
+AUX_STATES: tuple[str, ...] = ("z_lugre",)
 
 PARAM_NAMES: tuple[str, ...] = tuple(p.name for p in PARAMETERS)
 P = {p.name: p.symbol for p in PARAMETERS}

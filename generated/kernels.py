@@ -2,8 +2,8 @@
 # szdyn generated code (kernels) -- DO NOT EDIT.
 # Source: derive/codegen.py (run as `python -m derive`), SymPy 1.14.0.
 # Regenerate with `make derive`; tests check that this file is reproduced byte for byte.
-# State order: x = [q_w, q_b, q_1 .. q_Nc, u_w, u_b, u_1 .. u_Nc]  (rad, rad/s)
-# Parameter order (p): I_W, I_B, m_c, R_bo, d, t_c, R_w, t_r, n_rollers, k_c, b_c, k_imp, b_imp, n_imp, impact_clamp, mu_s, mu_k, gamma, m_b, g, drive_mode
+# State order: x = [q_w, q_b, q_1 .. q_Nc, u_w, u_b, u_1 .. u_Nc, z_lugre]  (rad, rad/s, m)
+# Parameter order (p): I_W, I_B, m_c, R_bo, d, t_c, R_w, t_r, n_rollers, k_c, b_c, k_imp, b_imp, n_imp, impact_clamp, mu_s, mu_k, gamma, m_b, g, drive_mode, contact_model, F_nw, mu_ws, mu_wk, v_ws, v_weps, sigma0, sigma1, sigma2
 # ----------------------------------------------------------------------------
 """Scalar kernels of the Spiral Zipper model, derived with sympy KanesMethod.
 
@@ -16,14 +16,15 @@ import numba as nb
 
 
 @nb.njit(cache=True)
-def core_kernel(T_m, tau_b, p):
-    """Wheel and band inertia (kg m^2) and generalized forces (N m) of motor torque T_m and band torque tau_b."""
+def core_kernel(T_m, tau_b, tau_wb, p):
+    """Wheel and band inertia (kg m^2) and generalized forces (N m) of motor torque T_m, band
+    torque tau_b and wheel-band friction torque pair tau_wb (on the band; reaction on the wheel)."""
     I_B = p[1]
     I_W = p[0]
     M_ww = I_W
     M_bb = I_B
-    F_w = T_m
-    F_b = tau_b
+    F_w = T_m - tau_wb
+    F_b = tau_b + tau_wb
     return M_ww, M_bb, F_w, F_b
 
 
@@ -160,4 +161,43 @@ def slider_torque(speed, p):
     x0 = abs(speed)
     x1 = 1/gamma
     value = -R_bo*g*m_b*((mu_s*x0*x1) if (gamma >= x0) else (mu_s - x1*(-gamma + x0)*(-2*mu_k + 2*mu_s)) if (x0 <= (3.0/2.0)*gamma) else (mu_k))*(0.0 if speed == 0 else math.copysign(1.0, speed))
+    return value
+
+
+@nb.njit(cache=True)
+def traction_coulomb_force(slip, p):
+    """Friction force (N) on the band along its motion at sliding speed slip (m/s)."""
+    F_nw = p[22]
+    mu_wk = p[24]
+    mu_ws = p[23]
+    v_weps = p[26]
+    v_ws = p[25]
+    value = F_nw*(mu_wk + (-mu_wk + mu_ws)*math.exp(-slip**2/v_ws**2))*math.tanh(slip/v_weps)
+    return value
+
+
+@nb.njit(cache=True)
+def lugre_z_dot(slip, z, p):
+    """Bristle deflection rate (m/s)."""
+    F_nw = p[22]
+    mu_wk = p[24]
+    mu_ws = p[23]
+    sigma0 = p[27]
+    v_ws = p[25]
+    value = slip - sigma0*z*abs(slip)/(F_nw*(mu_wk + (-mu_wk + mu_ws)*math.exp(-slip**2/v_ws**2)))
+    return value
+
+
+@nb.njit(cache=True)
+def lugre_force(slip, z, p):
+    """LuGre friction force (N) on the band at sliding speed slip (m/s), deflection z (m)."""
+    F_nw = p[22]
+    mu_wk = p[24]
+    mu_ws = p[23]
+    sigma0 = p[27]
+    sigma1 = p[28]
+    sigma2 = p[29]
+    v_ws = p[25]
+    x0 = sigma0*z
+    value = sigma1*(slip - x0*abs(slip)/(F_nw*(mu_wk + (-mu_wk + mu_ws)*math.exp(-slip**2/v_ws**2)))) + sigma2*slip + x0
     return value

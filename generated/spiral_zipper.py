@@ -2,12 +2,13 @@
 # szdyn generated code (assembly) -- DO NOT EDIT.
 # Source: derive/codegen.py (run as `python -m derive`), SymPy 1.14.0.
 # Regenerate with `make derive`; tests check that this file is reproduced byte for byte.
-# State order: x = [q_w, q_b, q_1 .. q_Nc, u_w, u_b, u_1 .. u_Nc]  (rad, rad/s)
-# Parameter order (p): I_W, I_B, m_c, R_bo, d, t_c, R_w, t_r, n_rollers, k_c, b_c, k_imp, b_imp, n_imp, impact_clamp, mu_s, mu_k, gamma, m_b, g, drive_mode
+# State order: x = [q_w, q_b, q_1 .. q_Nc, u_w, u_b, u_1 .. u_Nc, z_lugre]  (rad, rad/s, m)
+# Parameter order (p): I_W, I_B, m_c, R_bo, d, t_c, R_w, t_r, n_rollers, k_c, b_c, k_imp, b_imp, n_imp, impact_clamp, mu_s, mu_k, gamma, m_b, g, drive_mode, contact_model, F_nw, mu_ws, mu_wk, v_ws, v_weps, sigma0, sigma1, sigma2
 # ----------------------------------------------------------------------------
 """Spiral Zipper right-hand side: assembly of the generated kernels.
 
-State vector: x = [q_w, q_b, q_1 .. q_Nc, u_w, u_b, u_1 .. u_Nc]  (rad, rad/s); N_c = len(x)//2 - 2.
+State vector: x = [q_w, q_b, q_1 .. q_Nc, u_w, u_b, u_1 .. u_Nc, z_lugre]  (rad, rad/s, m);
+N_c = (len(x) - N_AUX)//2 - 2.
 Parameter vector p: float64 array in the order of ``PARAM_NAMES``; see ``PARAM_DOCS``.
 Drive array (see docs/CONTRACT.md): [K, t_0..t_{K-1}, v_0..v_{K-1}, c_0..c_{K-1}].
 Imports only math, numpy and numba.
@@ -19,7 +20,9 @@ import numpy as np
 
 from .kernels import (circle_energy, circle_kernel, contact_distance, contact_kernel,
                       core_energy, core_kernel, impact_normal_force, impact_potential,
-                      slider_torque)
+                      lugre_force, lugre_z_dot, slider_torque, traction_coulomb_force)
+
+KERNELS_SHA256 = "d90b2fe2f14bd1dc3fd332ddfdf55e84542a159ab9bca5211fab3b85d449c6c3"
 
 PARAM_NAMES = (
     "I_W",
@@ -43,8 +46,18 @@ PARAM_NAMES = (
     "m_b",
     "g",
     "drive_mode",
+    "contact_model",
+    "F_nw",
+    "mu_ws",
+    "mu_wk",
+    "v_ws",
+    "v_weps",
+    "sigma0",
+    "sigma1",
+    "sigma2",
 )
 PARAM_INDEX = {name: i for i, name in enumerate(PARAM_NAMES)}
+#: name -> (SI unit, meaning)
 PARAM_DOCS = {
     "I_W": ("kg*m^2", "wheel (with rollers) inertia about the tube axis n3"),
     "I_B": ("kg*m^2", "band tube inertia about n3 (J_B in the thesis)"),
@@ -67,7 +80,52 @@ PARAM_DOCS = {
     "m_b": ("kg", "mass whose weight loads the slider (normal force m_b g)"),
     "g": ("m/s^2", "gravitational acceleration"),
     "drive_mode": ("1", "0: prescribed wheel motion (drive array is speed); 1: motor torque"),
+    "contact_model": ("1", "wheel-band transmission: 0 impacts (thesis), 1 Coulomb friction, 2 LuGre friction"),
+    "F_nw": ("N", "friction counter-models: total normal force of the rollers on the band"),
+    "mu_ws": ("1", "friction counter-models: static (breakaway) coefficient, roller on band"),
+    "mu_wk": ("1", "friction counter-models: Coulomb (kinetic) coefficient, roller on band"),
+    "v_ws": ("m/s", "friction counter-models: Stribeck sliding speed"),
+    "v_weps": ("m/s", "Coulomb counter-model: regularisation speed of sign(v) ~ tanh(v/v_weps)"),
+    "sigma0": ("N/m", "LuGre bristle stiffness"),
+    "sigma1": ("N*s/m", "LuGre bristle damping"),
+    "sigma2": ("N*s/m", "LuGre viscous friction"),
 }
+#: name -> admissible values, checked by szdyn.params.validate
+PARAM_BOUNDS = {
+    "I_W": "> 0",
+    "I_B": "> 0",
+    "m_c": "> 0",
+    "R_bo": "> 0",
+    "d": "> 0",
+    "t_c": "> 0",
+    "R_w": "> 0",
+    "t_r": "> 0",
+    "n_rollers": "positive integer",
+    "k_c": ">= 0",
+    "b_c": ">= 0",
+    "k_imp": ">= 0",
+    "b_imp": ">= 0",
+    "n_imp": "> 0",
+    "impact_clamp": "one of 0,1",
+    "mu_s": ">= 0",
+    "mu_k": ">= 0",
+    "gamma": "> 0",
+    "m_b": ">= 0",
+    "g": "> 0",
+    "drive_mode": "one of 0,1",
+    "contact_model": "one of 0,1,2",
+    "F_nw": ">= 0",
+    "mu_ws": ">= 0",
+    "mu_wk": ">= 0",
+    "v_ws": "> 0",
+    "v_weps": "> 0",
+    "sigma0": "> 0",
+    "sigma1": ">= 0",
+    "sigma2": ">= 0",
+}
+
+AUX_STATES = ('z_lugre',)
+N_AUX = len(AUX_STATES)
 
 _I_I_W = 0
 _I_I_B = 1
@@ -90,8 +148,23 @@ _I_gamma = 17
 _I_m_b = 18
 _I_g = 19
 _I_drive_mode = 20
+_I_contact_model = 21
+_I_F_nw = 22
+_I_mu_ws = 23
+_I_mu_wk = 24
+_I_v_ws = 25
+_I_v_weps = 26
+_I_sigma0 = 27
+_I_sigma1 = 28
+_I_sigma2 = 29
 
 TWO_PI = 2.0 * math.pi
+
+
+@nb.njit(cache=True)
+def n_circles_of(n_state):
+    """N_c from the state length 2 (N_c + 2) + N_AUX."""
+    return (n_state - N_AUX) // 2 - 2
 
 
 @nb.njit(cache=True)
@@ -139,6 +212,25 @@ def contact_window(p, n_circles):
 
 
 @nb.njit(cache=True)
+def slip_speed(p, u_w, u_b):
+    """Sliding speed (m/s) of the rollers on the band at the contact radius R_w + t_r."""
+    return (p[_I_R_w] + p[_I_t_r]) * (u_w - u_b)
+
+
+@nb.njit(cache=True)
+def traction_torque(x, p, u_w):
+    """Torque (N m) on the band of the lumped wheel-band friction counter-model (0 for impacts)."""
+    model = int(p[_I_contact_model] + 0.5)
+    if model == 0:
+        return 0.0
+    n = n_circles_of(x.shape[0]) + 2
+    v = slip_speed(p, u_w, x[n + 1])
+    if model == 1:
+        return (p[_I_R_w] + p[_I_t_r]) * traction_coulomb_force(v, p)
+    return (p[_I_R_w] + p[_I_t_r]) * lugre_force(v, x[2 * n], p)
+
+
+@nb.njit(cache=True)
 def _assemble(x, p, q_w, u_w, T_m, m_bi, m_ii, f, c_phi, s_phi):
     """Arrowhead mass matrix and forcing of the whole system.
 
@@ -147,11 +239,12 @@ def _assemble(x, p, q_w, u_w, T_m, m_bi, m_ii, f, c_phi, s_phi):
     The wheel's angle, speed and torque are arguments because a prescribed drive overrides
     the state.
     """
-    nc = x.shape[0] // 2 - 2
+    nc = n_circles_of(x.shape[0])
     n = nc + 2
     q_b = x[1]
     u_b = x[n + 1]
-    M_ww, M_bb, F_w, F_b = core_kernel(T_m, slider_torque(u_b, p), p)
+    model = int(p[_I_contact_model] + 0.5)
+    M_ww, M_bb, F_w, F_b = core_kernel(T_m, slider_torque(u_b, p), traction_torque(x, p, u_w), p)
     for i in range(nc):
         phi = x[2 + i] - q_b
         c = math.cos(phi)
@@ -167,6 +260,8 @@ def _assemble(x, p, q_w, u_w, T_m, m_bi, m_ii, f, c_phi, s_phi):
 
     n_contacts = 0
     V_contacts = 0.0
+    if model != 0:  # friction counter-models: no impacts
+        return M_ww, M_bb, F_w, F_b, n_contacts, V_contacts
     nr = int(p[_I_n_rollers] + 0.5)
     reach = p[_I_t_c] + p[_I_t_r]
     pitch = TWO_PI / nc
@@ -209,12 +304,12 @@ def _wheel(t, x, p, drive):
 
 @nb.njit(cache=True)
 def rhs(t, x, p, drive, out):
-    """Time derivative of the state: writes dx/dt (shape (2 N_c + 4,)) into ``out``.
+    """Time derivative of the state: writes dx/dt (shape (2 N_c + 4 + N_AUX,)) into ``out``.
 
     Solves the arrowhead mass matrix in O(N_c) by the Schur complement on the band row:
     the wheel row is decoupled, each circle row couples only to the band.
     """
-    nc = x.shape[0] // 2 - 2
+    nc = n_circles_of(x.shape[0])
     n = nc + 2
     work = np.empty(5 * nc)
     m_bi = work[0:nc]
@@ -226,6 +321,10 @@ def rhs(t, x, p, drive, out):
     for k in range(n):
         out[k] = x[n + k]
     out[0] = u_w
+    if int(p[_I_contact_model] + 0.5) == 2:
+        out[2 * n] = lugre_z_dot(slip_speed(p, u_w, x[n + 1]), x[2 * n], p)
+    else:
+        out[2 * n] = 0.0
     if p[_I_drive_mode] < 0.5:
         out[n] = acc_w  # the motor supplies whatever torque the prescribed motion needs
     else:
@@ -249,7 +348,7 @@ def mass_matrix_forcing(t, x, p, drive):
     Rows are [w, b, 1..N_c]; M @ du = F. The wheel row is the free wheel's equation even
     when the drive prescribes its motion.
     """
-    nc = x.shape[0] // 2 - 2
+    nc = n_circles_of(x.shape[0])
     n = nc + 2
     work = np.empty(5 * nc)
     q_w, u_w, acc_w, T_m = _wheel(t, x, p, drive)
@@ -271,9 +370,9 @@ def mass_matrix_forcing(t, x, p, drive):
 
 @nb.njit(cache=True)
 def wheel_reaction_torque(t, x, p, drive):
-    """Generalized force of the contacts on the wheel row (N m): minus the torque the motor
-    must add, beyond I_W times the wheel's acceleration, to hold a prescribed motion."""
-    nc = x.shape[0] // 2 - 2
+    """Generalized force of the contacts (or friction) on the wheel row (N m): minus the torque
+    the motor must add, beyond I_W times the wheel's acceleration, to hold a prescribed motion."""
+    nc = n_circles_of(x.shape[0])
     work = np.empty(5 * nc)
     q_w, u_w, acc_w, T_m = _wheel(t, x, p, drive)
     M_ww, M_bb, F_w, F_b, _, _ = _assemble(x, p, q_w, u_w, 0.0, work[0:nc], work[nc:2 * nc],
@@ -287,7 +386,7 @@ def energy(x, p):
 
     Uses the wheel angle and speed from the state (meaningful for torque drive).
     """
-    nc = x.shape[0] // 2 - 2
+    nc = n_circles_of(x.shape[0])
     n = nc + 2
     work = np.empty(5 * nc)
     _, _, _, _, _, V = _assemble(x, p, x[0], x[n], 0.0, work[0:nc], work[nc:2 * nc],
@@ -301,7 +400,7 @@ def energy(x, p):
 @nb.njit(cache=True)
 def contact_count(t, x, p, drive):
     """Number of roller-circle pairs in contact at state x and time t."""
-    nc = x.shape[0] // 2 - 2
+    nc = n_circles_of(x.shape[0])
     work = np.empty(5 * nc)
     q_w, u_w, acc_w, T_m = _wheel(t, x, p, drive)
     _, _, _, _, nct, _ = _assemble(x, p, q_w, u_w, T_m, work[0:nc], work[nc:2 * nc],
@@ -312,7 +411,12 @@ def contact_count(t, x, p, drive):
 def state_names(n_circles):
     """Names of the state entries, in order."""
     qs = ["q_w", "q_b"] + [f"q_{i}" for i in range(1, n_circles + 1)]
-    return qs + ["u" + s[1:] for s in qs]
+    return qs + ["u" + s[1:] for s in qs] + list(AUX_STATES)
+
+
+def state_size(n_circles):
+    """Length of the state vector for N_c circles."""
+    return 2 * (n_circles + 2) + N_AUX
 
 
 def make_ivp_fun(p, drive):

@@ -5,7 +5,7 @@ import math
 
 import numpy as np
 
-from szdyn_generated.spiral_zipper import PARAM_NAMES
+from szdyn_generated.spiral_zipper import PARAM_NAMES, state_size
 
 
 def param_vector(**values) -> np.ndarray:
@@ -15,7 +15,7 @@ def param_vector(**values) -> np.ndarray:
 
 
 def random_params(rng: np.random.Generator, interference: float = 0.6e-3, drive_mode: int = 1,
-                  clamp: int | None = None) -> dict:
+                  clamp: int | None = None, contact_model: int = 0) -> dict:
     """Random but physical parameters; rollers reach ``interference`` (m) into the circles."""
     R_bo = rng.uniform(0.025, 0.04)
     d = rng.uniform(0.004, 0.008)
@@ -28,8 +28,12 @@ def random_params(rng: np.random.Generator, interference: float = 0.6e-3, drive_
         k_imp=rng.uniform(1e11, 1e12), b_imp=rng.uniform(1e11, 1e13), n_imp=rng.choice([1.5, 2.0, 3.0]),
         impact_clamp=rng.integers(0, 2) if clamp is None else clamp,
         mu_s=rng.uniform(0.3, 0.6), gamma=rng.uniform(0.005, 0.05), m_b=rng.uniform(0.5, 2.0),
-        g=9.80665, drive_mode=drive_mode,
+        g=9.80665, drive_mode=drive_mode, contact_model=contact_model,
+        F_nw=rng.uniform(1, 20), mu_ws=rng.uniform(0.6, 1.0), v_ws=rng.uniform(1e-3, 1e-2),
+        v_weps=rng.uniform(1e-4, 1e-3), sigma0=rng.uniform(1e4, 1e5), sigma1=rng.uniform(10, 300),
+        sigma2=rng.uniform(0, 1),
     )
+    v["mu_wk"] = v["mu_ws"] * rng.uniform(0.5, 1.0)
     v["mu_k"] = v["mu_s"] * rng.uniform(0.5, 1.0)
     return v
 
@@ -37,11 +41,12 @@ def random_params(rng: np.random.Generator, interference: float = 0.6e-3, drive_
 def random_state(rng: np.random.Generator, n_circles: int, gamma: float) -> np.ndarray:
     """Random state: arms deflected by up to ~0.3 rad, band speed in every friction branch."""
     n = n_circles + 2
-    x = np.empty(2 * n)
+    x = np.empty(state_size(n_circles))
     x[0] = rng.uniform(-math.pi, math.pi)
     x[1] = rng.uniform(-math.pi, math.pi)
     x[2:n] = x[1] + rng.uniform(-0.3, 0.3, n_circles)
-    x[n:] = rng.uniform(-3, 3, n)
+    x[n:2 * n] = rng.uniform(-3, 3, n)
+    x[2 * n:] = rng.uniform(-1e-5, 1e-5, x.size - 2 * n)  # LuGre bristle deflection (m)
     x[n + 1] = gamma * rng.choice([0.5, 1.2, 1.4, 3.0, -0.7, -1.3, -5.0])
     return x
 

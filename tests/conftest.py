@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from szdyn_generated.spiral_zipper import PARAM_NAMES
+from szdyn_generated.spiral_zipper import PARAM_NAMES, state_size
 
 
 def params_by_name(**values) -> np.ndarray:
@@ -37,13 +37,15 @@ def smooth_case():
     p = params_by_name(
         I_W=5.3e-6, I_B=2e-5, m_c=4e-3, R_bo=0.03, d=5e-3, t_c=1e-3, R_w=0.01817, t_r=1e-3,
         n_rollers=8, k_c=1e-5, b_c=2e-7, k_imp=4e12, b_imp=2e13, n_imp=3, impact_clamp=1,
-        mu_s=0.0, mu_k=0.0, gamma=0.01, m_b=1.0, g=9.80665, drive_mode=0)
+        mu_s=0.0, mu_k=0.0, gamma=0.01, m_b=1.0, g=9.80665, drive_mode=0,
+        contact_model=0, F_nw=10.0, mu_ws=0.9, mu_wk=0.8, v_ws=0.01, v_weps=1e-4,
+        sigma0=1e5, sigma1=316.0, sigma2=0.4)
     n_c = 3
     n = n_c + 2
-    x0 = np.zeros(2 * n)
+    x0 = np.zeros(state_size(n_c))
     x0[2:n] = [0.6, -0.4, 0.9]  # arm angles (rad), band at q_b = 0
     x0[n + 1] = 2.0  # band speed (rad/s)
-    x0[n + 2:] = [3.0, -1.0, 0.5]  # arm speeds (rad/s)
+    x0[n + 2:2 * n] = [3.0, -1.0, 0.5]  # arm speeds (rad/s)
     t_k = np.array([-0.5, 5.0])
     v_k = np.array([1.0, 12.0])  # wheel speed ramp, 2 rad/s^2
     c_k = np.array([0.0, 0.5 * (t_k[1] - t_k[0]) * (v_k[0] + v_k[1])])

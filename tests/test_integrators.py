@@ -14,6 +14,7 @@ from scipy.integrate import solve_ivp
 from szdyn.drive import Ramp
 from szdyn.errors import SimulationError
 from szdyn.integrators import DOPRI5, HEUN, RK4, TABLEAUX, Tableau, Trajectory, integrate
+from szdyn_generated.spiral_zipper import N_AUX
 from szdyn_generated.spiral_zipper import PARAM_INDEX, rhs
 
 
@@ -245,7 +246,7 @@ def test_prescribed_ramp_from_t0_is_exact(smooth_case, method):
     x0, p, _, _ = smooth_case
     ramp = Ramp(a=20.0, t_end=2.0)
     x0 = x0.copy()
-    n = x0.size // 2
+    n = (x0.size - N_AUX) // 2
     x0[0], x0[n] = 0.3, 0.0
     traj = integrate(x0, p, ramp.to_array(angle0=0.3), 0.5, method=method, dt=1e-3,
                      save_dt=1e-2)

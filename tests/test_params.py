@@ -8,7 +8,7 @@ import pytest
 
 from szdyn import defaults, params
 from szdyn.errors import ParameterError
-from szdyn.params import PARAMETER_BOUNDS, POSINT, BINARY, ParameterSet
+from szdyn.params import CHOICE, POSINT, ParameterSet, _bounds
 
 
 @pytest.fixture(scope="module")
@@ -39,6 +39,7 @@ def test_every_default_has_unit_description_provenance():
 
 
 def test_default_units_match_bounds_table():
+    PARAMETER_BOUNDS = _bounds()
     for d in defaults.PARAMETER_DEFAULTS:
         assert d.name in PARAMETER_BOUNDS, d.name
         assert PARAMETER_BOUNDS[d.name][0] == d.unit, d.name
@@ -58,6 +59,7 @@ def test_thesis_unit_conversions():
 
 # --- parameter set -----------------------------------------------------------------------------
 def test_defaults_cover_names_and_validate(names, ps):
+    PARAMETER_BOUNDS = _bounds()
     for n in names:
         assert n in PARAMETER_BOUNDS, f"{n}: no unit/bound entry"
         assert n in defaults.PARAMETER_DOCS, f"{n}: no docs entry"
@@ -100,15 +102,15 @@ def _bad_values(name):
     yield -float("inf")
     yield -1.0                 # every parameter is >= 0 (or 0/1, or a positive integer)
     yield -0.004
-    kind = PARAMETER_BOUNDS[name][1]
+    kind = _bounds()[name][1]
     if kind == params.POSITIVE:
         yield 0.0
     if kind == POSINT:
         yield 2.5
         yield 0.0
-    if kind == BINARY:
+    if kind.startswith(CHOICE):
         yield 0.5
-        yield 2.0
+        yield max(float(c) for c in kind[len(CHOICE):].split(",")) + 1
     yield "abc"
 
 
@@ -149,7 +151,7 @@ def test_zero_allowed_for_nonnegative(ps):
 
 def test_initial_state(ps):
     x0 = ps.initial_state()
-    assert x0.shape == (2 * (ps.n_circles + 2),) and x0.dtype == np.float64
+    assert x0.shape == (2 * (ps.n_circles + 2) + 1,) and x0.dtype == np.float64  # + LuGre z
     assert np.count_nonzero(x0) == 1
     # N_c = 100 is not a multiple of 8 rollers: best offset is a quarter circle pitch
     assert x0[0] == pytest.approx(math.pi / 200)

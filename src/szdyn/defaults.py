@@ -153,6 +153,26 @@ PARAMETER_DEFAULTS: tuple[Default, ...] = (
     Default("drive_mode", 0.0, "1",
             "0: prescribed wheel motion (drive array is speed); 1: motor torque",
             "thesis ch.4 s.2: simulations prescribed the wheel speed ramp omega = a t"),
+    # Counter-models of issue 3 (thesis ch.5: "Coulomb's model or LuGre friction").
+    Default("contact_model", 0.0, "1",
+            "wheel-band transmission: 0 impacts (thesis), 1 Coulomb friction, 2 LuGre friction",
+            "thesis ch.3: the impact-involved model is the thesis's; 1 and 2 are its ch.5 counter-models"),
+    Default("F_nw", 10.0, "N", "friction counter-models: total normal force of the rollers on the band",
+            "chosen so that the traction limit (R_w+t_r) mu_wk F_nw = 0.19 N m is ~2.6x the slider's kinetic torque"),
+    Default("mu_ws", 0.9, "1", "friction counter-models: static (breakaway) coefficient, roller on band",
+            "rubber on ABS, above ABS-on-ABS 0.5-0.6 (model-notes s.4: 'rubber on ABS higher'); a choice"),
+    Default("mu_wk", 0.8, "1", "friction counter-models: Coulomb (kinetic) coefficient, roller on band",
+            "rubber on ABS, above ABS-on-ABS 0.35-0.5 (model-notes s.4); a choice"),
+    Default("v_ws", 0.01, "m/s", "friction counter-models: Stribeck sliding speed",
+            "Canudas de Wit et al. 1995 (IEEE TAC 40(3)) use v_s = 0.001-0.01 m/s; upper value"),
+    Default("v_weps", 1e-4, "m/s", "Coulomb counter-model: regularisation speed of sign(v) ~ tanh(v/v_weps)",
+            "chosen 100x below v_ws so that the regularised law is Coulomb at every slip of interest"),
+    Default("sigma0", 1e5, "N/m", "LuGre bristle stiffness",
+            "Canudas de Wit et al. 1995, example values sigma0 = 1e5 N/m"),
+    Default("sigma1", 316.0, "N*s/m", "LuGre bristle damping",
+            "Canudas de Wit et al. 1995, sigma1 = sqrt(1e5) = 316 N s/m"),
+    Default("sigma2", 0.4, "N*s/m", "LuGre viscous friction",
+            "Canudas de Wit et al. 1995, sigma2 = 0.4 N s/m"),
 )
 
 N_CIRCLES_DEFAULT = Default(

@@ -28,6 +28,7 @@ import numpy as np
 from numba import njit
 
 import szdyn_generated.spiral_zipper as _model
+from szdyn_generated.spiral_zipper import N_AUX, state_size
 from szdyn_generated.spiral_zipper import rhs as _rhs
 
 from .errors import SimulationError
@@ -494,8 +495,8 @@ def integrate(x0, p, drive, t_end, method="rk4", dt=1e-4, save_dt=1e-3, rtol=1e-
     p = _as_vector("p", p)
     drive = _as_vector("drive", drive)
     n = x0.size
-    if n < 4 or n % 2:
-        raise ValueError(f"integrate: x0 must have even length 2*(N_c + 2) >= 4, got {n}")
+    if n < state_size(1) or (n - N_AUX) % 2:
+        raise ValueError(f"integrate: x0 must have length 2*(N_c + 2) + {N_AUX} with N_c >= 1, got {n}")
     bad = np.flatnonzero(~np.isfinite(x0))
     if bad.size:
         raise ValueError(f"integrate: x0 must be finite, got {x0[bad[0]]} in "
@@ -519,7 +520,9 @@ def integrate(x0, p, drive, t_end, method="rk4", dt=1e-4, save_dt=1e-3, rtol=1e-
     # save grid t0 + k*save_dt (k from the index, no drift) plus t_end if it is off the grid
     n_full = int(math.floor(span / save_dt * (1 + 1e-12)))
     t_save = t0 + save_dt * np.arange(n_full + 1)
-    if t_end - t_save[-1] > 1e-9 * save_dt:
+    remainder = t_end - t_save[-1]  # in (-tiny, save_dt)
+    appended = n_full == 0 or remainder > 1e-9 * save_dt
+    if appended:
         t_save = np.append(t_save, t_end)
     else:
         t_save[-1] = t_end
@@ -539,8 +542,11 @@ def integrate(x0, p, drive, t_end, method="rk4", dt=1e-4, save_dt=1e-3, rtol=1e-
         if save_every < 1 or abs(save_every * dt - save_dt) > 1e-9 * save_dt:
             raise ValueError(f"integrate: save_dt={save_dt!r} must be a multiple of dt={dt!r} "
                              f"(within 1e-9 relative)")
-        n_steps = int(math.ceil(span / dt * (1 - 1e-12)))
-        n_steps = max(n_steps, 1)
+        # step count from the save grid (not from span/dt) so that the last save row is always
+        # written: whole save intervals, plus ceil(remainder/dt) steps if t_end is off the grid
+        n_steps = n_full * save_every
+        if appended:
+            n_steps += max(1, int(math.ceil(remainder / dt * (1 - 1e-9))))
         # chunk boundaries on multiples of save_every so that saves never straddle chunks
         n_blocks = -(-n_steps // save_every)
         bounds = sorted({min(n_steps, int(round(f)) * save_every)
@@ -636,8 +642,9 @@ def _extend_cache_stamps():
     Numba validates a cache entry only against the (mtime, size) of the file defining the
     jitted function; callees from other modules are compiled in but not tracked. Without this,
     regenerating ``generated/*.py`` would keep loading kernels with the old RHS compiled in
-    (verified with numba 0.68). Uses Numba internals (``Dispatcher._cache._cache_file._source_stamp``, present since
-    0.4x); if they change, caching still works but the stamp is not extended.
+    (verified with numba 0.68). Uses Numba internals
+    (``Dispatcher._cache._cache_file._source_stamp``); if they change, caching still works but
+    the stamp is not extended.
     """
     try:
         # every module of the generated package (rhs calls into kernels.py as well)

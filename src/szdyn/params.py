@@ -28,41 +28,23 @@ from .io import write_json
 from szdyn.errors import ParameterError
 from szdyn.geometry import BandGeometry
 
-__all__ = ["ParameterSet", "param_names", "param_index", "validate", "PARAMETER_BOUNDS"]
+__all__ = ["ParameterSet", "param_names", "param_index", "validate"]
 
 _FORMAT = "szdyn-parameters"
 _VERSION = 1
 
-# Lower-bound kinds used by validate().
+# Bound kinds (strings shared with derive/symbols.py, exported as PARAM_BOUNDS).
 POSITIVE = "> 0"  # strictly positive real
 NONNEG = ">= 0"  # non-negative real
 POSINT = "positive integer"
-BINARY = "0 or 1"
+CHOICE = "one of "  # prefix: "one of 0,1,2"
 
-#: name -> (unit, bound kind). Every name in PARAM_NAMES must appear here (checked).
-PARAMETER_BOUNDS: dict[str, tuple[str, str]] = {
-    "I_W": ("kg*m^2", POSITIVE),
-    "I_B": ("kg*m^2", POSITIVE),
-    "m_c": ("kg", POSITIVE),
-    "R_bo": ("m", POSITIVE),
-    "d": ("m", POSITIVE),
-    "t_c": ("m", POSITIVE),
-    "R_w": ("m", POSITIVE),
-    "t_r": ("m", POSITIVE),
-    "n_rollers": ("1", POSINT),
-    "k_c": ("N*m/rad", NONNEG),
-    "b_c": ("N*m*s/rad", NONNEG),
-    "k_imp": ("N/m^n", NONNEG),
-    "b_imp": ("N*s/m^(n+1)", NONNEG),
-    "n_imp": ("1", POSITIVE),
-    "impact_clamp": ("1", BINARY),
-    "mu_s": ("1", NONNEG),
-    "mu_k": ("1", NONNEG),
-    "gamma": ("rad/s", POSITIVE),
-    "m_b": ("kg", NONNEG),
-    "g": ("m/s^2", POSITIVE),
-    "drive_mode": ("1", BINARY),
-}
+
+def _bounds() -> dict[str, tuple[str, str]]:
+    """name -> (unit, bound kind), from the generated module (one source: derive/symbols.py)."""
+    from szdyn_generated.spiral_zipper import PARAM_BOUNDS, PARAM_DOCS
+
+    return {name: (PARAM_DOCS[name][0], PARAM_BOUNDS[name]) for name in PARAM_BOUNDS}
 
 
 def param_names() -> tuple[str, ...]:
@@ -136,7 +118,8 @@ def validate(values: Mapping[str, float], n_circles: int, names=None) -> dict[st
     Parameters
     ----------
     values : mapping of str to float
-        One value per name in ``names`` (SI units, see ``PARAMETER_BOUNDS``).
+        One value per name in ``names`` (SI units and bounds: ``PARAM_DOCS`` and
+        ``PARAM_BOUNDS`` of the generated module).
     n_circles : int
         ``N_c``, number of small circles (positive integer).
     names : sequence of str, optional
@@ -158,6 +141,7 @@ def validate(values: Mapping[str, float], n_circles: int, names=None) -> dict[st
         (``d < R_bo``, ``R_w + t_r < R_bo``, ``t_c < d`` are required).
     """
     names = tuple(param_names() if names is None else names)
+    bounds = _bounds()
     for key in values:
         if key not in names:
             raise _unknown(key, names)
@@ -165,11 +149,7 @@ def validate(values: Mapping[str, float], n_circles: int, names=None) -> dict[st
     for name in names:
         if name not in values:
             raise ParameterError(f"missing value for parameter '{name}'")
-        if name not in PARAMETER_BOUNDS:
-            raise ParameterError(
-                f"parameter '{name}' is in PARAM_NAMES but has no unit/bound entry in "
-                "szdyn.params.PARAMETER_BOUNDS (and needs a default in szdyn.defaults)")
-        unit, kind = PARAMETER_BOUNDS[name]
+        unit, kind = bounds[name]
         v = _as_real(name, values[name])
         u = "" if unit == "1" else f" {unit}"
         if not math.isfinite(v):
@@ -180,8 +160,8 @@ def validate(values: Mapping[str, float], n_circles: int, names=None) -> dict[st
             raise ParameterError(f"parameter '{name}' must be >= 0{u}, got {_fmt(v)}")
         if kind == POSINT and not (v > 0.0 and v == int(v)):
             raise ParameterError(f"parameter '{name}' must be a positive integer, got {_fmt(v)}")
-        if kind == BINARY and v not in (0.0, 1.0):
-            raise ParameterError(f"parameter '{name}' must be 0 or 1, got {_fmt(v)}")
+        if kind.startswith(CHOICE) and v not in {float(c) for c in kind[len(CHOICE):].split(",")}:
+            raise ParameterError(f"parameter '{name}' must be {kind}, got {_fmt(v)}")
         out[name] = v
     _check_n_circles(n_circles)
 
@@ -198,6 +178,11 @@ def validate(values: Mapping[str, float], n_circles: int, names=None) -> dict[st
         raise ParameterError(
             f"parameter 'R_w' + t_r must be < R_bo = {out['R_bo']!r} m (rollers must fit inside "
             f"the band), got R_w = {out['R_w']!r}, t_r = {out['t_r']!r}")
+    if has("contact_model", "F_nw") and out["contact_model"] != 0 and not out["F_nw"] > 0:
+        raise ParameterError("parameter 'F_nw' must be > 0 N when contact_model is 1 or 2 "
+                             f"(friction counter-models), got {_fmt(out['F_nw'])}")
+    if has("mu_ws", "mu_wk") and out["mu_wk"] > out["mu_ws"]:
+        raise ParameterError(f"parameter 'mu_wk' must be <= mu_ws = {out['mu_ws']!r}, got {out['mu_wk']!r}")
     if has("t_c", "d") and not out["t_c"] < out["d"]:
         raise ParameterError(f"parameter 't_c' (circle radius) must be < d = {out['d']!r} m, "
                              f"got {out['t_c']!r}")
@@ -274,8 +259,10 @@ class ParameterSet:
 
     @property
     def state_size(self) -> int:
-        """Length of the state vector, ``2 * (N_c + 2)``."""
-        return 2 * (self.n_circles + 2)
+        """Length of the state vector, ``2 * (N_c + 2) + N_AUX``."""
+        from szdyn_generated.spiral_zipper import state_size
+
+        return state_size(self.n_circles)
 
     def to_array(self) -> np.ndarray:
         """Parameter vector ``p``.
@@ -337,9 +324,9 @@ class ParameterSet:
 
         Returns
         -------
-        numpy.ndarray, shape (2 * (N_c + 2),), float64
-            ``[q_w, q_b, q_1..q_Nc, u_w, u_b, u_1..u_Nc]`` with ``q_w = q_w0``, all other
-            angles 0 rad and all speeds 0 rad/s.
+        numpy.ndarray, shape (2 * (N_c + 2) + N_AUX,), float64
+            ``[q_w, q_b, q_1..q_Nc, u_w, u_b, u_1..u_Nc, z_lugre]`` with ``q_w = q_w0``, all
+            other angles 0 rad, all speeds 0 rad/s and auxiliary states 0.
         """
         if q_w0 is None:
             q_w0 = self.default_wheel_offset()

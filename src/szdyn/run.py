@@ -16,6 +16,7 @@ from .errors import ParameterError, SimulationError, UserInputError
 from .io import write_json
 
 METHODS = ("rk4", "heun", "dopri5")
+CONTACT_MODELS = {"impact": 0, "coulomb": 1, "lugre": 2}
 
 
 def _parse_set(items) -> dict[str, float]:
@@ -66,6 +67,9 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--params", type=Path, help="parameter JSON file (as written to OUT/params.json); default: built-in defaults")
     ap.add_argument("--set", action="append", metavar="NAME=VALUE", help="override one parameter (SI units); repeatable")
     ap.add_argument("--n-circles", type=_positive_int, help="number of small circles N_c (default: from the parameter set)")
+    ap.add_argument("--contact", choices=tuple(CONTACT_MODELS), default=None,
+                    help="wheel-band transmission: impact (thesis), coulomb or lugre friction counter-models "
+                         "(default: the parameter set's contact_model)")
     ap.add_argument("--method", choices=METHODS, default="dopri5",
                     help="integrator: heun (thesis's modified Euler), rk4 (fixed step), dopri5 (adaptive); default %(default)s")
     ap.add_argument("--dt", type=_positive_float, default=1e-5, help="fixed step for heun/rk4 in s (default %(default)s)")
@@ -92,6 +96,8 @@ def load_parameters(args):
     changes = _parse_set(args.set)
     if args.n_circles is not None:
         changes["n_circles"] = args.n_circles
+    if args.contact is not None:
+        changes["contact_model"] = CONTACT_MODELS[args.contact]
     return params.replace(**changes) if changes else params
 
 
