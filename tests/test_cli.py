@@ -1,34 +1,47 @@
 """``python -m szdyn.run``: a real (small) run, and one-line errors for bad input."""
 from __future__ import annotations
 
-import csv
 import json
 import subprocess
 import sys
 
 import pytest
 
+from szdyn.criteria import evaluate_fig10
+from szdyn.params import ParameterSet
 from szdyn.run import main
+from szdyn.simulate import OUTPUT_UNITS
+from szdyn.thesis import read_outputs, stroke_error
 
-SMALL = ["--n-circles", "16", "--omega-hold", "0.6", "--t-hold", "0.2", "--quiet"]
+SMALL = ["--n-circles", "16", "--omega-hold", "0.6", "--t-hold", "1.2", "--quiet", "--workers", "2"]
 
 
-def test_small_thesis_run_writes_csv_png_json(tmp_path):
-    assert main(["--out", str(tmp_path)] + SMALL) == 0
+def test_small_thesis_run_json_is_recomputed_from_the_csvs(tmp_path):
+    assert main(["--out", str(tmp_path), "--contact", "impact"] + SMALL) == 0
     out = tmp_path / "thesis-fig10"
-    summary = json.loads((out / "summary.json").read_text())
-    assert [r["name"] for r in summary["runs"]] == ["ramp_0.1pi", "ramp_0.2pi", "ramp_0.5pi"]
+    result = json.loads((out / "thesis-fig10.json").read_text())
     assert (out / "thesis-fig10.png").stat().st_size > 10_000
-    for r in summary["runs"]:
-        with open(out / r["csv"]) as fh:
-            rows = list(csv.DictReader(fh))
-        assert set(summary["csv_units"]) == set(rows[0])
-        assert float(rows[-1]["t"]) == pytest.approx(r["t_end_s"])
-        # the CSV is the run: its hold mean equals the summary's
-        hold = [float(x["u_b"]) for x in rows if float(x["t"]) >= r["t_ramp_s"]]
-        assert sum(hold) / len(hold) == pytest.approx(r["hold_mean_band_speed_rad_s"], rel=1e-6)
-    # parameters round-trip: the written file reproduces the run's parameter set
-    assert main(["--out", str(tmp_path / "again"), "--params", str(out / "params.json")] + SMALL) == 0
+    model = result["models"]["impact"]
+    assert [r["name"] for r in model["runs"]] == ["ramp_0.1pi", "ramp_0.2pi", "ramp_0.5pi"]
+    outputs = {r["name"]: read_outputs(out / r["csv"]) for r in model["runs"]}
+    for r in model["runs"]:
+        assert set(outputs[r["name"]]) == set(OUTPUT_UNITS)
+        assert outputs[r["name"]]["t"][-1] == pytest.approx(r["t_end_s"])
+    recomputed = evaluate_fig10(outputs, {r["name"]: r["t_ramp_s"] for r in model["runs"]})
+    assert json.loads(json.dumps(recomputed)) == model["criteria"]
+    params = ParameterSet.from_json(out / "params.json")
+    for r in model["runs"]:
+        assert stroke_error(outputs[r["name"]], r["t_ramp_s"], params.geometry.pitch) == model["stroke_error"][r["name"]]
+    # parameters round-trip: the written file reproduces the run
+    assert main(["--out", str(tmp_path / "again"), "--params", str(out / "params.json"), "--contact", "impact"] + SMALL) == 0
+    again = json.loads((tmp_path / "again" / "thesis-fig10" / "thesis-fig10.json").read_text())
+    assert again["models"]["impact"]["criteria"] == model["criteria"]
+
+
+def test_counter_model_run(tmp_path):
+    assert main(["--out", str(tmp_path), "--contact", "lugre"] + SMALL) == 0
+    result = json.loads((tmp_path / "thesis-fig10" / "thesis-fig10.json").read_text())
+    assert list(result["models"]) == ["lugre"]
 
 
 @pytest.mark.parametrize("argv, expect", [

@@ -13,25 +13,38 @@ def _pyplot():
     return plt
 
 
-def fig10(runs, path) -> Path:
-    """Thesis Fig. 10 style: wheel, band and relative angular speed against time, one panel
-    per run. ``runs`` is a list of ``(label, outputs)`` with the :class:`szdyn.simulate.Run`
-    output columns."""
+def fig10_grid(panels, result, path) -> Path:
+    """Fig. 10 for several contact models: rows = ramps, columns = models; each column's
+    title says which of the thesis criteria (a)-(d) the model meets."""
     plt = _pyplot()
-    fig, axes = plt.subplots(len(runs), 1, figsize=(8, 2.8 * len(runs)), squeeze=False)
-    for ax, (label, o) in zip(axes[:, 0], runs):
-        ax.plot(o["t"], o["u_w"], label="wheel $u_w$", lw=1.2)
-        ax.plot(o["t"], o["u_b"], label="band $u_b$", lw=0.8)
-        ax.plot(o["t"], o["rel_speed"], label="relative $u_w - u_b$", lw=0.8)
-        ax.set_title(label)
-        ax.set_ylabel("angular speed (rad/s)")
-        ax.grid(alpha=0.3)
-    axes[-1, 0].set_xlabel("time (s)")
-    axes[0, 0].legend(loc="upper left", fontsize=8)
+    models = list(panels)
+    nrow = len(next(iter(panels.values())))
+    fig, axes = plt.subplots(nrow, len(models), figsize=(5.2 * len(models), 2.6 * nrow), squeeze=False,
+                             sharey="row")
+    for c, m in enumerate(models):
+        crit = result["models"][m]["criteria"]
+        marks = " ".join(f"({k}){'+' if crit[name]['passed'] else '-'}"
+                         for k, name in zip("abcd", ("slip_at_constant_speed", "set_by_wheel_speed",
+                                                      "no_drop_after_ramp", "rises_with_wheel_speed")))
+        for r, (label, o) in enumerate(panels[m]):
+            ax = axes[r, c]
+            ax.plot(o["t"], o["u_w"], label="wheel $u_w$", lw=1.2)
+            ax.plot(o["t"], o["u_b"], label="band $u_b$", lw=0.7)
+            ax.plot(o["t"], o["rel_speed"], label="relative $u_w-u_b$", lw=0.7)
+            ax.grid(alpha=0.3)
+            if r == 0:
+                ax.set_title(f"{m}: {marks}", fontsize=10)
+            if c == 0:
+                ax.set_ylabel(f"{label}\nrad/s", fontsize=9)
+            if r == nrow - 1:
+                ax.set_xlabel("time (s)")
+    axes[0, 0].legend(loc="upper left", fontsize=7)
+    fig.suptitle("thesis-fig10: criteria (a) slip at constant speed, (b) set by wheel speed, "
+                 "(c) no drop after ramp, (d) rises with wheel speed (+ met, - not met)", fontsize=9)
     fig.tight_layout()
     path = Path(path)
     tmp = path.with_name(f".{path.name}.tmp.png")
-    fig.savefig(tmp, dpi=120)
+    fig.savefig(tmp, dpi=110)
     plt.close(fig)
-    tmp.replace(path)  # atomic: never a half-written PNG
+    tmp.replace(path)
     return path

@@ -6,17 +6,14 @@ writes one CSV per run, a Fig. 10-style PNG, the parameters used and a JSON summ
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import sys
-import time
 from pathlib import Path
 
 from .errors import ParameterError, SimulationError, UserInputError
-from .io import write_json
 
 METHODS = ("rk4", "heun", "dopri5")
-CONTACT_MODELS = {"impact": 0, "coulomb": 1, "lugre": 2}
+CONTACT_MODELS = ("impact", "coulomb", "lugre")
 
 
 def _parse_set(items) -> dict[str, float]:
@@ -58,8 +55,9 @@ def build_parser() -> argparse.ArgumentParser:
 
     ap = argparse.ArgumentParser(
         prog="python -m szdyn.run",
-        description="Simulate the Spiral Zipper (impact-friction model of Lee 2021). "
-                    "Writes CSV per run, a PNG like the thesis's Fig. 10, params.json and summary.json.",
+        description="Simulate the Spiral Zipper (impact-friction model of Lee 2021) and its friction "
+                    "counter-models. Writes a CSV per run, a PNG like the thesis's Fig. 10, params.json and "
+                    "thesis-fig10.json (the thesis's findings as criteria, measured, with pass/fail).",
     )
     ap.add_argument("--scenario", default="thesis-fig10", choices=sorted(SCENARIOS),
                     help="scenario to run (default: %(default)s)")
@@ -68,8 +66,10 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--set", action="append", metavar="NAME=VALUE", help="override one parameter (SI units); repeatable")
     ap.add_argument("--n-circles", type=_positive_int, help="number of small circles N_c (default: from the parameter set)")
     ap.add_argument("--contact", choices=tuple(CONTACT_MODELS), default=None,
-                    help="wheel-band transmission: impact (thesis), coulomb or lugre friction counter-models "
-                         "(default: the parameter set's contact_model)")
+                    help="wheel-band transmission to run: impact (thesis), coulomb or lugre friction "
+                         "counter-models (default: all three)")
+    ap.add_argument("--workers", type=_positive_int, default=None,
+                    help="parallel processes (default: one per core)")
     ap.add_argument("--method", choices=METHODS, default="dopri5",
                     help="integrator: heun (thesis's modified Euler), rk4 (fixed step), dopri5 (adaptive); default %(default)s")
     ap.add_argument("--dt", type=_positive_float, default=1e-5, help="fixed step for heun/rk4 in s (default %(default)s)")
@@ -96,54 +96,24 @@ def load_parameters(args):
     changes = _parse_set(args.set)
     if args.n_circles is not None:
         changes["n_circles"] = args.n_circles
-    if args.contact is not None:
-        changes["contact_model"] = CONTACT_MODELS[args.contact]
     return params.replace(**changes) if changes else params
 
 
 def simulate_command(argv) -> int:
-    from .plots import fig10
-    from .progress import Progress
-    from .scenarios import SCENARIOS
-    from .simulate import OUTPUT_UNITS, simulate
+    from .thesis import CRITERIA_LABELS, Integration, run_fig10
 
     args = build_parser().parse_args(argv)
     params = load_parameters(args)
-    runs = SCENARIOS[args.scenario](omega_hold=args.omega_hold, t_hold=args.t_hold)
+    models = [args.contact] if args.contact else list(CONTACT_MODELS)
+    integ = Integration(args.method, args.dt, args.rtol, args.atol, args.save_dt)
     out = args.out / args.scenario
-    out.mkdir(parents=True, exist_ok=True)
-    params.to_json(out / "params.json")
-    summary = {"scenario": args.scenario, "method": args.method,
-               "dt": args.dt if args.method != "dopri5" else None,
-               "rtol": args.rtol if args.method == "dopri5" else None,
-               "atol": args.atol if args.method == "dopri5" else None,
-               "n_circles": params.n_circles, "csv_units": OUTPUT_UNITS, "runs": []}
-    plotted = []
-    for spec in runs:
-        t0 = time.perf_counter()
-        run = simulate(params, spec.drive, spec.t_end, method=args.method, dt=args.dt, save_dt=args.save_dt,
-                       rtol=args.rtol, atol=args.atol, progress=Progress(spec.name, enabled=not args.quiet))
-        wall = time.perf_counter() - t0
-        csv = out / f"{spec.name}.csv"
-        run.to_csv(csv)
-        o = run.outputs
-        hold = o["t"] >= spec.t_ramp
-        summary["runs"].append({
-            "name": spec.name, "label": spec.label, "csv": csv.name, "t_end_s": spec.t_end,
-            "t_ramp_s": spec.t_ramp, "wall_time_s": round(wall, 3), "steps": int(run.trajectory.n_steps),
-            "rejected_steps": int(run.trajectory.n_rejected),
-            "hold_mean_wheel_speed_rad_s": float(o["u_w"][hold].mean()),
-            "hold_mean_band_speed_rad_s": float(o["u_b"][hold].mean()),
-            "hold_mean_rel_speed_rad_s": float(o["rel_speed"][hold].mean()),
-            "stroke_lost_at_end_mm": float(1e3 * o["stroke_lost"][-1]),
-            "mean_contacts": float(o["contacts"].mean()),
-        })
-        plotted.append((spec.label, o))
-        if not args.quiet:
-            print(f"{spec.name}: {spec.t_end:.1f} s simulated in {wall:.1f} s -> {csv}", file=sys.stderr)
-    png = fig10(plotted, out / f"{args.scenario}.png")
-    write_json(out / "summary.json", summary)
-    print(f"wrote {png} and {len(runs)} CSV files in {out}")
+    result = run_fig10(params, out, models=models, integ=integ, omega_hold=args.omega_hold,
+                       t_hold=args.t_hold, workers=args.workers, progress=not args.quiet)
+    for m, r in result["models"].items():
+        marks = ", ".join(f"{CRITERIA_LABELS[k]} {'met' if r['criteria'][k]['passed'] else 'NOT met'}"
+                          for k in CRITERIA_LABELS)
+        print(f"{m}: {marks}")
+    print(f"wrote {out / 'thesis-fig10.png'}, {out / 'thesis-fig10.json'} and per-run CSVs in {out}")
     return 0
 
 

@@ -287,8 +287,6 @@ def parse_spec(data: dict) -> SweepSpec:
         raise SpecError("[base.drive] key 'kind' is missing; one of " + ", ".join(DRIVE_KINDS))
     kind = _string("[base.drive] key 'kind'", drive_in["kind"], tuple(DRIVE_KINDS))
     _cls, req, opt, listy = DRIVE_KINDS[kind]
-    _check_keys(f"base.drive] (kind {kind!r})[", drive_in, ("kind",) + req + opt) \
-        if False else None
     for key in drive_in:
         if key != "kind" and key not in req + opt:
             raise SpecError(f"[base.drive] unknown key '{key}' for kind '{kind}'"
@@ -392,6 +390,9 @@ def parse_spec(data: dict) -> SweepSpec:
     samples = _draw_samples(sampling) if sampling else [{}]
     variables = [a["name"] for a in axes] + ([r["name"] for r in sampling["ranges"]]
                                              if sampling else [])
+    for x in metrics:
+        if x.name in variables:
+            raise SpecError(f"[metrics] name '{x.name}' is also a swept variable; rename it")
     cases = []
     for point in itertools.product(*[a["values"] for a in axes]):
         g = dict(zip([a["name"] for a in axes], point))
