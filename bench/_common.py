@@ -82,6 +82,38 @@ def _cpu_model() -> str:
     return platform.processor() or "unknown"
 
 
+def model_info() -> dict:
+    """What was benchmarked: git commit, hash of the generated code, key default parameters."""
+    import hashlib
+    import subprocess
+
+    try:
+        head = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT, capture_output=True,
+                              text=True, timeout=10).stdout.strip()
+        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], cwd=ROOT,
+                               capture_output=True, text=True, timeout=10).stdout.strip()
+        head = (head or "unknown") + (" (with uncommitted changes)" if dirty else "")
+    except (OSError, subprocess.SubprocessError):
+        head = "unknown"
+    h = hashlib.sha256()
+    for name in ("kernels.py", "spiral_zipper.py"):
+        try:
+            h.update((ROOT / "generated" / name).read_bytes())
+        except OSError:
+            pass
+    info = {"git HEAD": head, "generated/ sha256": h.hexdigest()[:12]}
+    try:
+        from szdyn.defaults import default_parameters
+
+        ps = default_parameters(100)
+        keys = [k for k in ("R_bo", "d", "t_c", "R_w", "t_r", "n_rollers", "contact_model") if k in ps.values]
+        info["defaults (N_c = 100)"] = ", ".join(f"{k}={ps[k]:g}" for k in keys) + \
+            f", interference={ps.interference * 1e3:.3g} mm"
+    except Exception as exc:  # the report still says what it could not read
+        info["defaults (N_c = 100)"] = f"unavailable ({exc})"
+    return info
+
+
 def machine() -> dict:
     """CPU model, cores, versions and date."""
     import numba

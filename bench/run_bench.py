@@ -25,7 +25,7 @@ for _p in (str(_HERE), str(_HERE.parent)):  # bench helpers, and the repo root f
     if _p not in sys.path:
         sys.path.insert(0, _p)
 
-from _common import fmt_time, log, machine, table  # noqa: E402
+from _common import fmt_time, log, machine, model_info, table  # noqa: E402
 
 SECTIONS = {
     "derivation": "sec_derivation",
@@ -68,7 +68,7 @@ def header(info: dict, quick: bool, wall: float, load: tuple) -> str:
         "ratio compares against a baseline measured in the same run on the same machine. Times are the best "
         "of several repeats (wall clock, `time.perf_counter`).",
         "",
-        table(["machine", ""], rows),
+        table(["machine and model", ""], rows),
     ])
 
 
@@ -83,6 +83,7 @@ def main(argv=None) -> int:
     t_start = time.perf_counter()
     load = os.getloadavg()
     info = machine()
+    info.update(model_info())
     log(f"machine: {info['cpu']}, {info['cores']}; mode {'quick' if args.quick else 'full'}")
     parts, failed = [], []
     import importlib

@@ -72,13 +72,22 @@ def _solve_only(nc: int) -> float:
     return best_of(lambda: np.linalg.solve(M, F), repeat=5, number=200)
 
 
+def _array_build(nc: int) -> float:
+    """``numpy.array`` of an (N_c+2)^2 nested list of Python floats: what the lambdified function
+    does to return M, whatever its expressions cost (a measured floor for the quadratic term)."""
+    _, p, x, drive = setup(nc)
+    M, _ = sz.mass_matrix_forcing(T_EVAL, x, p, drive)
+    rows = M.tolist()
+    return best_of(lambda: np.array(rows), repeat=5, number=50)
+
+
 def run(quick: bool) -> dict:
     ps, p, x, drive = setup(N_TARGET)
     log(f"3/6 generated rhs at N_c={N_TARGET}")
     gen = {"compiled_s": time_rhs_compiled(p, x, drive, min_time=0.5),
            "python_s": time_rhs_python(p, x, drive, min_time=0.5),
            "contacts": int(sz.contact_count(T_EVAL, x, p, drive)),
-           "solve_dense_s": _solve_only(N_TARGET)}
+           "solve_dense_s": _solve_only(N_TARGET), "array_build_s": _array_build(N_TARGET)}
     base = []
     sizes = [1, 2, 4] if quick else [2, 4, 8]
     for nc in sizes:
@@ -139,6 +148,11 @@ def report(res: dict) -> str:
                "rel. diff of accelerations"], rows),
         "",
         "(Baseline states: as above but with the wheel turned to the first angle at which a roller touches a circle, so that contact forces are part of the check and of the timing.)",
+        "",
+        f"Sanity check of the extrapolation: building the {N_TARGET + 2}x{N_TARGET + 2} `numpy.array` that the "
+        f"lambdified function returns as M costs {fmt_time(gen['array_build_s'])} by itself (measured), a term "
+        "quadratic in N_c that the power-law fit over small N_c hardly sees, so the extrapolated baseline is "
+        "more likely too low than too high (the ratio conservative).",
         "",
         f"**Ratio at N_c = {N_TARGET} (extrapolated baseline): ~{base100 / gen['compiled_s']:.0f}x "
         f"(compiled loop), ~{base100 / gen['python_s']:.0f}x (Python loop).**",

@@ -197,17 +197,32 @@ def drive_eval(drive, t):
 
 
 @nb.njit(cache=True)
-def contact_window(p, n_circles):
-    """Number of circles to test on each roller pass (O(1) in N_c, all of them if small).
+def contact_window(p, n_circles, phi_max):
+    """Number of consecutive hinges to test on each roller pass (all of them if N_c is small).
 
-    A roller centre (radius R_w) and a circle centre closer than t_c + t_r subtend at O an
-    angle of at most asin((t_c + t_r)/R_w); a circle centre lies within asin(d/R_bo) of its
-    hinge Q_i whatever the arm angle. Hinges are evenly spaced, so the candidates are the
-    hinges within the sum of the two angles of the roller.
+    A contact needs |roller centre - circle centre| < t_c + t_r. A circle centre lies at radius
+    r >= R_bo - d (triangle inequality) and, for arm deflections |phi| <= phi_max < pi/2, within
+    atan(d sin(phi_max) / (R_bo - d)) of its hinge's ray (else within asin(d / R_bo)). For two
+    points at radii R_w and r >= R_w the distance grows with the angle between them, so by the
+    law of cosines the roller can reach a circle centre only within
+    acos((R_w^2 + r_min^2 - reach^2) / (2 R_w r_min)) of its own ray. The hinges are evenly
+    spaced, so the candidates are the hinges within the sum of the two angles of the roller.
     """
     reach = p[_I_t_c] + p[_I_t_r]
-    bound = math.asin(min(1.0, reach / p[_I_R_w])) + math.asin(min(1.0, p[_I_d] / p[_I_R_bo]))
-    half = int(bound / (TWO_PI / n_circles)) + 1
+    R_w = p[_I_R_w]
+    d = p[_I_d]
+    R_bo = p[_I_R_bo]
+    r_min = R_bo - d
+    if r_min >= R_w:
+        c = (R_w * R_w + r_min * r_min - reach * reach) / (2.0 * R_w * r_min)
+        reach_angle = math.acos(max(-1.0, min(1.0, c)))
+    else:  # roller centres outside the ring of circles: the cruder bound D >= R_w sin(angle)
+        reach_angle = math.asin(min(1.0, reach / R_w)) if reach < R_w else math.pi
+    if phi_max < 0.5 * math.pi:
+        offset = math.atan2(d * math.sin(phi_max), r_min)
+    else:
+        offset = math.asin(min(1.0, d / R_bo))
+    half = int((reach_angle + offset) / (TWO_PI / n_circles)) + 1
     return min(2 * half + 1, n_circles)
 
 
@@ -231,11 +246,12 @@ def traction_torque(x, p, u_w):
 
 
 @nb.njit(cache=True)
-def _assemble(x, p, q_w, u_w, T_m, m_bi, m_ii, f, c_phi, s_phi):
+def _assemble(x, p, q_w, u_w, T_m, m_bi, m_ii, f, c_phi, s_phi, want_energy):
     """Arrowhead mass matrix and forcing of the whole system.
 
     Fills the band-circle coupling ``m_bi``, circle diagonal ``m_ii`` and circle forcing ``f``
-    (each shape (N_c,)), and returns ``(M_ww, M_bb, F_w, F_b, n_contacts, V_contacts)``.
+    (each shape (N_c,)), and returns ``(M_ww, M_bb, F_w, F_b, n_contacts, V_contacts)``;
+    ``V_contacts`` (elastic energy in the contacts) is only computed if ``want_energy``.
     The wheel's angle, speed and torque are arguments because a prescribed drive overrides
     the state.
     """
@@ -245,8 +261,10 @@ def _assemble(x, p, q_w, u_w, T_m, m_bi, m_ii, f, c_phi, s_phi):
     u_b = x[n + 1]
     model = int(p[_I_contact_model] + 0.5)
     M_ww, M_bb, F_w, F_b = core_kernel(T_m, slider_torque(u_b, p), traction_torque(x, p, u_w), p)
+    phi_max = 0.0
     for i in range(nc):
         phi = x[2 + i] - q_b
+        phi_max = max(phi_max, abs(phi))
         c = math.cos(phi)
         s = math.sin(phi)
         c_phi[i] = c
@@ -265,7 +283,7 @@ def _assemble(x, p, q_w, u_w, T_m, m_bi, m_ii, f, c_phi, s_phi):
     nr = int(p[_I_n_rollers] + 0.5)
     reach = p[_I_t_c] + p[_I_t_r]
     pitch = TWO_PI / nc
-    ncand = contact_window(p, nc)
+    ncand = contact_window(p, nc, phi_max)
     cp = math.cos(pitch)
     sp = math.sin(pitch)
     for j in range(nr):
@@ -285,7 +303,8 @@ def _assemble(x, p, q_w, u_w, T_m, m_bi, m_ii, f, c_phi, s_phi):
                 F_b += f_n * Gn_b
                 f[i] += f_n * Gn_i
                 n_contacts += 1
-                V_contacts += impact_potential(delta, p)
+                if want_energy:
+                    V_contacts += impact_potential(delta, p)
             # next hinge: rho -> rho - pitch, by rotation instead of new trig calls
             cr, sr = cr * cp + sr * sp, sr * cp - cr * sp
     return M_ww, M_bb, F_w, F_b, n_contacts, V_contacts
@@ -317,7 +336,7 @@ def rhs(t, x, p, drive, out):
     f = work[2 * nc:3 * nc]
     q_w, u_w, acc_w, T_m = _wheel(t, x, p, drive)
     M_ww, M_bb, F_w, F_b, _, _ = _assemble(x, p, q_w, u_w, T_m, m_bi, m_ii, f,
-                                           work[3 * nc:4 * nc], work[4 * nc:5 * nc])
+                                           work[3 * nc:4 * nc], work[4 * nc:5 * nc], False)
     for k in range(n):
         out[k] = x[n + k]
     out[0] = u_w
@@ -353,7 +372,7 @@ def mass_matrix_forcing(t, x, p, drive):
     work = np.empty(5 * nc)
     q_w, u_w, acc_w, T_m = _wheel(t, x, p, drive)
     M_ww, M_bb, F_w, F_b, _, _ = _assemble(x, p, q_w, u_w, T_m, work[0:nc], work[nc:2 * nc],
-                                           work[2 * nc:3 * nc], work[3 * nc:4 * nc], work[4 * nc:])
+                                           work[2 * nc:3 * nc], work[3 * nc:4 * nc], work[4 * nc:], False)
     M = np.zeros((n, n))
     F = np.zeros(n)
     M[0, 0] = M_ww
@@ -376,7 +395,7 @@ def wheel_reaction_torque(t, x, p, drive):
     work = np.empty(5 * nc)
     q_w, u_w, acc_w, T_m = _wheel(t, x, p, drive)
     M_ww, M_bb, F_w, F_b, _, _ = _assemble(x, p, q_w, u_w, 0.0, work[0:nc], work[nc:2 * nc],
-                                           work[2 * nc:3 * nc], work[3 * nc:4 * nc], work[4 * nc:])
+                                           work[2 * nc:3 * nc], work[3 * nc:4 * nc], work[4 * nc:], False)
     return F_w
 
 
@@ -390,7 +409,7 @@ def energy(x, p):
     n = nc + 2
     work = np.empty(5 * nc)
     _, _, _, _, _, V = _assemble(x, p, x[0], x[n], 0.0, work[0:nc], work[nc:2 * nc],
-                                 work[2 * nc:3 * nc], work[3 * nc:4 * nc], work[4 * nc:])
+                                 work[2 * nc:3 * nc], work[3 * nc:4 * nc], work[4 * nc:], True)
     E = core_energy(x[n], x[n + 1], p) + V
     for i in range(nc):
         E += circle_energy(x[2 + i] - x[1], work[3 * nc + i], work[4 * nc + i], x[n + 1], x[n + 2 + i], p)
@@ -404,7 +423,7 @@ def contact_count(t, x, p, drive):
     work = np.empty(5 * nc)
     q_w, u_w, acc_w, T_m = _wheel(t, x, p, drive)
     _, _, _, _, nct, _ = _assemble(x, p, q_w, u_w, T_m, work[0:nc], work[nc:2 * nc],
-                                   work[2 * nc:3 * nc], work[3 * nc:4 * nc], work[4 * nc:])
+                                   work[2 * nc:3 * nc], work[3 * nc:4 * nc], work[4 * nc:], False)
     return nct
 
 

@@ -84,3 +84,31 @@ def test_help_and_no_traceback_in_a_real_process(tmp_path):
     r = subprocess.run([sys.executable, "-m", "szdyn.run", "--out", str(tmp_path), "--set", "d=-0.001"],
                        capture_output=True, text=True)
     assert r.returncode == 2 and "Traceback" not in r.stderr and "'d'" in r.stderr
+
+
+def test_regime_map_small(tmp_path):
+    """A 2 x 2 regime map end to end; re-running resumes (nothing recomputed)."""
+    from szdyn.defaults import default_parameters
+    from szdyn.regime import run_regime_map
+
+    params = default_parameters(n_circles=16)
+    kw = dict(second="b_c", interference_mm=[-0.5, 0.19], factors=(1.0, 3.0), workers=1, progress=False,
+              omega_hold=2.0, a=20.0, t_hold=0.3, hold_skip=0.1)
+    s = run_regime_map(params, tmp_path, **kw)
+    assert sum(s["counts"].values()) == 4
+    # rollers 0.5 mm out of reach cannot move the band: full slip, band at rest
+    far = [c for c in s["cases"] if c["interference_mm"] < 0]
+    assert {c["regime"] for c in far} == {"full_slip"} and all(c["hold_band_rad_s"] == 0 for c in far)
+    assert (tmp_path / "regime_map.png").stat().st_size > 5_000
+    case_files = sorted((tmp_path / "cases").glob("*.json"))
+    assert len(case_files) == 4
+    stamps = [f.stat().st_mtime_ns for f in case_files]
+    assert run_regime_map(params, tmp_path, **kw)["cases"] == s["cases"]
+    assert [f.stat().st_mtime_ns for f in case_files] == stamps  # resumed: no case recomputed
+
+
+def test_sweep_and_regime_commands_are_registered(capsys):
+    for cmd in ("sweep", "regime"):
+        with pytest.raises(SystemExit) as exc:
+            main([cmd, "--help"])
+        assert exc.value.code == 0

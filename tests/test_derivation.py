@@ -183,3 +183,30 @@ def test_generated_code_does_not_import_sympy():
         text = path.read_text()
         assert "sympy" not in text.split('"""', 2)[-1].replace("SymPy", ""), path
         assert "DO NOT EDIT" in text and "make derive" in text
+
+
+@pytest.mark.parametrize("n_circles", [1, 5, 16, 100])
+def test_contact_window_finds_every_contact(n_circles):
+    """The windowed contact search equals a brute-force test of every roller-circle pair, at
+    random states (arm deflections up to pi) and geometries, including many contacts."""
+    rng = np.random.default_rng(n_circles)
+    found = 0
+    for trial in range(300):
+        v = random_params(rng, interference=rng.uniform(-0.5e-3, 3e-3))
+        v["n_rollers"] = int(rng.integers(1, 9))
+        if trial % 3 == 0:  # roller centres beyond the ring of circles
+            v["R_w"] = v["R_bo"] - v["d"] + rng.uniform(0, 0.5) * v["d"]
+            v["t_r"] = min(v["t_r"], 0.9 * (v["R_bo"] - v["R_w"]))
+        p = param_vector(**v)
+        x = random_state(rng, n_circles, v["gamma"])
+        x[2:n_circles + 2] = x[1] + rng.uniform(-1, 1, n_circles) * rng.choice([0.02, 0.3, np.pi])
+        brute = 0
+        for j in range(v["n_rollers"]):
+            for i in range(n_circles):
+                rho = x[0] + 2 * np.pi * j / v["n_rollers"] - x[1] - 2 * np.pi * i / n_circles
+                phi = x[2 + i] - x[1]
+                dist = gk.contact_distance(np.cos(rho), np.sin(rho), np.cos(phi), np.sin(phi), p)
+                brute += dist < v["t_c"] + v["t_r"]
+        assert sz.contact_count(0.0, x, p, constant_drive(0.0)) == brute
+        found += brute
+    assert found >= 20

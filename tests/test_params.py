@@ -65,7 +65,7 @@ def test_defaults_cover_names_and_validate(names, ps):
         assert n in defaults.PARAMETER_DOCS, f"{n}: no docs entry"
     assert tuple(ps.values) == names
     assert ps.n_circles == 100
-    assert ps.interference == pytest.approx(0.17e-3, rel=1e-9)
+    assert ps.interference == pytest.approx(0.19e-3, rel=1e-9)
     assert ps.geometry.diameter == pytest.approx(2 * ps["R_bo"])
 
 
@@ -135,7 +135,9 @@ def test_message_format(ps):
     (dict(mu_k=0.4), "mu_k"),                       # mu_k > mu_s
     (dict(d=0.031), "'d'"),                          # arm longer than band radius
     (dict(R_w=0.025), "R_w"),                        # rollers do not fit inside the band
-    (dict(t_c=0.006), "t_c"),                        # circle bigger than the arm
+    (dict(t_c=0.013), "t_c"),                        # circle bigger than the arm
+    (dict(contact_model=1, F_nw=0.0), "F_nw"),       # friction counter-model without normal force
+    (dict(mu_wk=0.95), "mu_wk"),                     # mu_wk > mu_ws
     (dict(n_circles=0), "n_circles"),
     (dict(n_circles=12.5), "n_circles"),
 ])

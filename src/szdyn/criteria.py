@@ -275,23 +275,22 @@ def _crit_c(runs, window_s, tol, min_samples):
             slope, end = 0.0, before
         d.update(mean_rel_ramp_last=before, ramp_end_fit=end, ramp_slope=float(slope),
                  mean_rel_hold_first=after)
-        if abs(before) > 1e-12:
-            d["relative_change_of_means"] = (after - before) / abs(before)
-        if abs(end) <= 1e-12:
-            reasons.append(f"{name}: relative speed fitted at the end of the ramp is 0")
+        if abs(end) > 1e-12:
+            d["relative_change_vs_ramp_end_fit"] = (after - end) / abs(end)
+        if abs(before) <= 1e-12:
+            reasons.append(f"{name}: mean relative speed over the last second of the ramp is 0")
         else:
-            change = (after - end) / abs(end)
+            change = (after - before) / abs(before)
             diffs.append(abs(change))
             d["relative_change"] = change
         per_run[name] = d
     detail = {"runs": per_run, "interval_s": window_s,
-              "note": "value = largest |hold mean - ramp-end value| / |ramp-end value|, where "
-                      "hold mean = mean raw rel. speed over the first interval_s of the hold "
-                      "and ramp-end value = least-squares line through the raw rel. speed over "
-                      "the last interval_s of the ramp, evaluated at t_ramp (the plain mean "
-                      "over that second would lag the ramp-end value whenever the rel. speed "
-                      "rises with wheel speed: 0.1*u_w at a = 0.5 pi to pi gives a spurious 33 "
-                      "%; it is reported as relative_change_of_means)"}
+              "note": "value = largest |hold mean - ramp mean| / |ramp mean| over the runs (the "
+                      "issue's definition): hold mean = mean raw rel. speed over the first "
+                      "interval_s of the hold, ramp mean = over the last interval_s of the ramp. "
+                      "When the rel. speed rises with wheel speed the ramp mean lags the value at "
+                      "the ramp's end, so relative_change_vs_ramp_end_fit (a line fitted to the "
+                      "last interval_s of the ramp, evaluated at its end) is reported too"}
     if reasons or not diffs:
         detail["reason"] = "; ".join(reasons) or "no runs"
         return _result(False, None, tol, detail)

@@ -1,7 +1,8 @@
-"""``python -m szdyn.run``: run scenarios of the Spiral Zipper model.
+"""``python -m szdyn.run [COMMAND]``: run the Spiral Zipper model.
 
-Without a command it runs the thesis scenario (``thesis-fig10``) on the built-in defaults and
-writes one CSV per run, a Fig. 10-style PNG, the parameters used and a JSON summary.
+Commands: ``simulate`` (the default: scenario ``thesis-fig10`` on the built-in defaults, one CSV
+per run, a Fig. 10-style PNG, params.json and thesis-fig10.json), ``sweep SPEC.toml`` (parameter
+sweeps, parallel and resumable) and ``regime`` (regime map). ``COMMAND --help`` for each.
 """
 from __future__ import annotations
 
@@ -50,6 +51,13 @@ def _positive_int(text: str) -> int:
     return v
 
 
+def add_parameter_options(ap: argparse.ArgumentParser) -> None:
+    """``--params``, ``--set`` and ``--n-circles``, shared by the commands (see load_parameters)."""
+    ap.add_argument("--params", type=Path, help="parameter JSON file (as written to OUT/params.json); default: built-in defaults")
+    ap.add_argument("--set", action="append", metavar="NAME=VALUE", help="override one parameter (SI units); repeatable")
+    ap.add_argument("--n-circles", type=_positive_int, help="number of small circles N_c (default: from the parameter set)")
+
+
 def build_parser() -> argparse.ArgumentParser:
     from .scenarios import SCENARIOS
 
@@ -62,9 +70,7 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--scenario", default="thesis-fig10", choices=sorted(SCENARIOS),
                     help="scenario to run (default: %(default)s)")
     ap.add_argument("--out", type=Path, default=Path("results"), help="output directory (default: %(default)s)")
-    ap.add_argument("--params", type=Path, help="parameter JSON file (as written to OUT/params.json); default: built-in defaults")
-    ap.add_argument("--set", action="append", metavar="NAME=VALUE", help="override one parameter (SI units); repeatable")
-    ap.add_argument("--n-circles", type=_positive_int, help="number of small circles N_c (default: from the parameter set)")
+    add_parameter_options(ap)
     ap.add_argument("--contact", choices=tuple(CONTACT_MODELS), default=None,
                     help="wheel-band transmission to run: impact (thesis), coulomb or lugre friction "
                          "counter-models (default: all three)")
@@ -117,7 +123,38 @@ def simulate_command(argv) -> int:
     return 0
 
 
-COMMANDS = {"simulate": simulate_command}
+def regime_command(argv) -> int:
+    from .regime import SECOND_AXES, run_regime_map
+
+    ap = argparse.ArgumentParser(
+        prog="python -m szdyn.run regime",
+        description="Regime map: roller interference against a second parameter; each case ramps the wheel "
+                    "to a held speed and is classified stick / partial slip / full slip. Parallel and resumable "
+                    "(re-run the same command to continue); writes regime_map.png/.json/.csv into OUT.")
+    ap.add_argument("--second", choices=sorted(SECOND_AXES), default="b_c",
+                    help="second axis, swept as factors %s of its default (default: %%(default)s)" %
+                         ", ".join(f"{k}: {v}" for k, v in SECOND_AXES.items()))
+    ap.add_argument("--out", type=Path, default=None, help="output directory (default: results/regime-SECOND)")
+    add_parameter_options(ap)
+    ap.add_argument("--omega-hold", type=_positive_float, default=math.pi, help="held wheel speed, rad/s (default pi)")
+    ap.add_argument("--workers", type=_positive_int, default=None, help="parallel processes (default: one per core)")
+    ap.add_argument("--quiet", action="store_true", help="no progress output")
+    args = ap.parse_args(argv)
+    params = load_parameters(args)
+    out = args.out or Path("results") / f"regime-{args.second}"
+    summary = run_regime_map(params, out, second=args.second, workers=args.workers, progress=not args.quiet,
+                             omega_hold=args.omega_hold)
+    print(f"regime map ({summary['counts']}) written to {out / 'regime_map.png'}")
+    return 0
+
+
+def sweep_command(argv) -> int:
+    from .sweep import sweep_command as run_sweep_command
+
+    return run_sweep_command(argv)
+
+
+COMMANDS = {"simulate": simulate_command, "sweep": sweep_command, "regime": regime_command}
 
 
 def main(argv=None) -> int:

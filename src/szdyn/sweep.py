@@ -35,7 +35,10 @@ Output directory ``DIR``:
 ``summary.json``
     Counts, wall time, throughput, workers (this invocation).
 ``metrics.png``
-    Each metric over the first axis (lines: values of the second axis), or scatter for samples.
+    Each metric over the first axis (lines: values of the second axis), or a scatter over the
+    first variable (colour: the second) when the spec has ``[sampling]``.
+``.lock``
+    Advisory lock held while a sweep runs here (a second concurrent run is refused).
 
 Safe to interrupt: every case's files are written atomically (temp file + rename) when it
 finishes, the ``.json`` last, so a re-run of the same command skips finished cases (``ok``,
@@ -218,9 +221,27 @@ class _DirLock:
             self.fh.close()
 
 
-def _prepare_dir(out: Path, spec: SweepSpec) -> None:
-    """Create DIR/spec.json, or check that the existing one is the same spec."""
+def model_fingerprint() -> str:
+    """SHA-256 of the generated model sources (``szdyn_generated/*.py``), to notice a
+    regenerated model between an interrupted sweep and its resumption."""
+    import hashlib
+
+    import szdyn_generated
+
+    h = hashlib.sha256()
+    for f in sorted(Path(szdyn_generated.__file__).parent.glob("*.py")):
+        h.update(f.name.encode() + b"\0" + f.read_bytes() + b"\0")
+    return h.hexdigest()
+
+
+def _prepare_dir(out: Path, spec: SweepSpec) -> bool:
+    """Create DIR/spec.json, or check that the existing one is the same spec.
+
+    Returns True if the generated model changed since the sweep in DIR was started (a
+    warning: finished cases were computed with the old model).
+    """
     sp = out / SPEC_FILE
+    fingerprint = model_fingerprint()
     if sp.is_file():
         try:
             old = json.loads(sp.read_text(encoding="utf-8"))
@@ -234,7 +255,7 @@ def _prepare_dir(out: Path, spec: SweepSpec) -> None:
                 f"--out {out} holds results of a different sweep spec (hash {old_hash[:12]} "
                 f"there, {spec.hash[:12]} now; differs in: {', '.join(where) or 'content'}); "
                 "use another --out, or delete the directory to start again")
-        return
+        return old.get("model_fingerprint") not in (None, fingerprint)
     stray = [p.name for p in out.iterdir() if p.name not in (".lock", CASES_DIR)] \
         if out.is_dir() else []
     cdir = out / CASES_DIR
@@ -247,7 +268,9 @@ def _prepare_dir(out: Path, spec: SweepSpec) -> None:
     if spec.text:
         atomic_write_text(out / "spec.toml", spec.text)
     write_json(sp, {"format": "szdyn-sweep", "version": 1, "hash": spec.hash,
-                    "source": spec.source, "n_cases": len(spec.cases), "spec": spec.canonical})
+                    "source": spec.source, "n_cases": len(spec.cases),
+                    "model_fingerprint": fingerprint, "spec": spec.canonical})
+    return False
 
 
 def _clean_tmp(out: Path) -> None:
@@ -272,8 +295,10 @@ def _iter_pool(tasks, workers: int, context: str = "spawn"):
     from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
     from concurrent.futures.process import BrokenProcessPool
 
-    pool = ProcessPoolExecutor(max_workers=workers, mp_context=mp.get_context(context),
-                               initializer=_worker_init)
+    ctx = mp.get_context(context)
+    if context == "forkserver":
+        ctx.set_forkserver_preload(["szdyn.simulate"])
+    pool = ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=_worker_init)
     clean = False
     try:
         it = iter(tasks)
@@ -457,7 +482,14 @@ def run_sweep(spec, out, *, workers: int | None = None, dask_client=None,
     on_case_done : callable(record), optional
         Called after each newly finished case has been written.
     context : {"spawn", "forkserver"}
-        Multiprocessing start method of the process pool.
+        Multiprocessing start method of the process pool (never ``fork``: Numba). As with any
+        ``spawn`` pool, a script that calls this with ``workers > 1`` needs the
+        ``if __name__ == "__main__":`` guard.
+
+    Returns
+    -------
+    SweepResult
+        Counts by status, cases computed now / skipped (done before), wall time, paths.
     """
     if not isinstance(spec, SweepSpec):
         spec = load_spec(spec)
@@ -471,7 +503,11 @@ def run_sweep(spec, out, *, workers: int | None = None, dask_client=None,
     out.mkdir(parents=True, exist_ok=True)
     t_start = time.perf_counter()
     with _DirLock(out):
-        _prepare_dir(out, spec)
+        model_changed = _prepare_dir(out, spec)
+        if model_changed:
+            print(f"szdyn: warning: the generated model (szdyn_generated) changed since the sweep "
+                  f"in {out} was started; cases finished before were computed with the old "
+                  "model (delete the directory to recompute all)", file=sys.stderr, flush=True)
         _clean_tmp(out)
         (out / CASES_DIR).mkdir(exist_ok=True)
         todo = [cid for cid in range(len(spec.cases))
@@ -504,6 +540,12 @@ def run_sweep(spec, out, *, workers: int | None = None, dask_client=None,
                 prog.update(rec["status"])
                 if on_case_done is not None:
                     on_case_done(rec)
+        except KeyboardInterrupt:
+            if progress:
+                print(f"\nsweep interrupted: {skipped + computed} of {len(spec.cases)} cases are "
+                      f"saved in {out / CASES_DIR}; re-run the same command to continue",
+                      file=sys.stderr, flush=True)
+            raise
         finally:
             close = getattr(results, "close", None)
             if close is not None:
@@ -519,7 +561,7 @@ def run_sweep(spec, out, *, workers: int | None = None, dask_client=None,
                    "executor": executor, "workers": n_workers if executor != "dask" else None,
                    "wall_time_s": round(sweep_wall, 3),
                    "cases_per_s": round(computed / sweep_wall, 4) if sweep_wall > 0 else None,
-                   "spec_hash": spec.hash}
+                   "spec_hash": spec.hash, "model_changed_since_start": model_changed}
         write_json(out / "summary.json", summary)
     return SweepResult(out=out, n_cases=len(spec.cases), n_computed=computed, n_skipped=skipped,
                        counts=counts, wall_time_s=sweep_wall, complete=n_pending == 0,
@@ -670,7 +712,6 @@ def plot_metrics(path, spec: SweepSpec, rows, header) -> Path | None:
     scales = {a["name"]: a["scale"] for a in spec.axes}
     if spec.sampling:
         scales.update({r["name"]: r["scale"] for r in spec.sampling["ranges"]})
-    grid_names = [a["name"] for a in spec.axes]
     sampled = spec.sampling is not None
     n = len(spec.metrics)
     ncol = min(3, n)
@@ -680,7 +721,7 @@ def plot_metrics(path, spec: SweepSpec, rows, header) -> Path | None:
         ax = axs[k // ncol][k % ncol]
         unit = metric_unit(m, _units())
         pts = [r for r in ok if r[idx[m.name]] is not None]
-        if sampled and xname not in grid_names or len(grid_names) == 0:
+        if sampled:
             x = [r[idx[xname]] for r in pts]
             y = [r[idx[m.name]] for r in pts]
             if len(spec.variables) > 1 and pts:

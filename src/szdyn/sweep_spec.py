@@ -239,7 +239,7 @@ def load_spec(path) -> SweepSpec:
 def parse_spec(data: dict) -> SweepSpec:
     """Validate a parsed TOML document (dict) and build the canonical spec and case list."""
     from .defaults import default_parameters
-    from .params import param_names
+    from .params import param_names, validate
 
     _check_keys("top level", data, TOP_KEYS)
     description = data.get("description", "")
@@ -344,8 +344,10 @@ def parse_spec(data: dict) -> SweepSpec:
         if name == "n_circles":
             v = int(v)
         try:
-            if name in names or name == "n_circles":
-                ps.replace(**{name: v})
+            if name in names:  # its own bound only; combinations are checked per case
+                validate({name: v}, ps.n_circles, names=(name,))
+            elif name == "n_circles":
+                validate({}, v, names=())
             elif name == "t_end":
                 _number(f"{where} value", v, positive=True)
             elif name.startswith("drive."):

@@ -1,0 +1,143 @@
+"""Regime map: where the impact model sticks, slips partially or slips fully.
+
+model-notes section 5: the thesis's behaviour lives in a narrow band of roller interference
+(``R_w + t_r + t_c - (R_bo - d)``). The map sweeps interference against a second parameter
+(``b_c``, ``k_c`` or the slider load ``m_b``), drives each case up a ramp to a held wheel speed,
+and classifies the hold by its mean band and wheel speeds (:func:`szdyn.criteria.classify_regime`:
+stick if the relative speed is below 2 % of the wheel speed, full slip if the band turns at less
+than 20 % of it, partial slip otherwise). It runs on the sweep engine, so it is parallel and
+resumable, and writes ``regime_map.csv``/``.json``/``.png`` beside the sweep's own files.
+"""
+from __future__ import annotations
+
+import csv
+import math
+from pathlib import Path
+
+import numpy as np
+
+from .criteria import classify_regime
+from .io import write_csv, write_json
+from .params import ParameterSet
+
+#: Second axes offered by the CLI: name -> (values as factors of the default, log scale?)
+SECOND_AXES = {"b_c": (0.1, 0.3, 1.0, 3.0), "k_c": (0.1, 0.3, 1.0, 3.0), "m_b": (0.25, 0.5, 1.0, 2.0, 4.0)}
+REGIMES = ("stick", "partial_slip", "full_slip", "undefined", "failed")
+
+
+def regime_spec(params: ParameterSet, interference_mm, second: str, second_values, *, omega_hold=math.pi,
+                a=0.5 * math.pi, t_hold=2.0, hold_skip=0.5, method="dopri5", rtol=1e-5) -> dict:
+    """The sweep spec (as a TOML-like dict) of a regime map around ``params``."""
+    v = params.values
+    offset = v["R_bo"] - v["d"] - v["t_c"] - v["t_r"]  # R_w = offset + interference
+    t_ramp = omega_hold / a
+    base_params = {k: float(x) for k, x in v.items() if k not in ("drive_mode",)}
+    return {
+        "description": f"regime map: interference x {second} (hold at {omega_hold:.4g} rad/s)",
+        "base": {
+            "t_end": t_ramp + t_hold, "n_circles": params.n_circles, "params": base_params,
+            "drive": {"kind": "ramp_hold", "a": a, "t_ramp": t_ramp, "t_hold": t_hold},
+            "integrator": {"method": method, "rtol": rtol, "atol": 1e-8, "save_dt": 1e-3},
+        },
+        "axes": {"R_w": [round(offset + 1e-3 * i, 12) for i in interference_mm],
+                 second: [float(s) for s in second_values]},
+        "metrics": {
+            "hold_wheel": {"kind": "mean", "of": "u_w", "t_from": t_ramp + hold_skip},
+            "hold_band": {"kind": "mean", "of": "u_b", "t_from": t_ramp + hold_skip},
+            "hold_slip": {"kind": "mean", "of": "rel_speed", "t_from": t_ramp + hold_skip},
+        },
+    }
+
+
+def classify_table(table_csv, params: ParameterSet, second: str) -> list[dict]:
+    """Read the sweep's ``cases.csv`` and classify each case."""
+    offset = params["R_bo"] - params["d"] - params["t_c"] - params["t_r"]
+    rows = []
+    with open(table_csv, newline="") as fh:
+        for r in csv.DictReader(fh):
+            status = r.get("status", "ok")
+            wheel, band = _num(r.get("hold_wheel")), _num(r.get("hold_band"))
+            regime = classify_regime(wheel, band) if status == "ok" else "failed"
+            rows.append({"case_id": int(r["case_id"]), "interference_mm": round(1e3 * (float(r["R_w"]) - offset), 6),
+                         second: float(r[second]), "hold_wheel_rad_s": wheel, "hold_band_rad_s": band,
+                         "band_over_wheel": band / wheel if wheel and math.isfinite(band) else float("nan"),
+                         "regime": regime, "status": status})
+    return rows
+
+
+def _num(s):
+    try:
+        return float(s)
+    except (TypeError, ValueError):
+        return float("nan")
+
+
+def plot_regime_map(rows, second: str, default_point, path) -> Path:
+    """Categorical map: interference (mm) on x, the second parameter on y (log), colour = regime,
+    text = band/wheel speed ratio in percent; the default parameter set is marked."""
+    from .plots import _pyplot
+
+    plt = _pyplot()
+    colors = {"stick": "#4c72b0", "partial_slip": "#55a868", "full_slip": "#c44e52",
+              "undefined": "#999999", "failed": "#000000"}
+    xs = sorted({r["interference_mm"] for r in rows})
+    ys = sorted({r[second] for r in rows})
+    fig, ax = plt.subplots(figsize=(1.0 + 0.75 * len(xs), 1.4 + 0.6 * len(ys)))
+    for r in rows:
+        i, j = xs.index(r["interference_mm"]), ys.index(r[second])
+        ax.add_patch(plt.Rectangle((i - 0.5, j - 0.5), 1, 1, color=colors[r["regime"]], alpha=0.85))
+        ratio = r["band_over_wheel"]
+        ax.text(i, j, "" if not math.isfinite(ratio) else f"{100 * ratio:.0f}", ha="center", va="center",
+                fontsize=7, color="white")
+    dx, dy = default_point
+    if dx in xs and dy in ys:
+        ax.plot(xs.index(dx), ys.index(dy), marker="o", ms=22, mfc="none", mec="gold", mew=2.5)
+    ax.set_xticks(range(len(xs)), [f"{x:.3g}" for x in xs], rotation=45)
+    ax.set_yticks(range(len(ys)), [f"{y:.3g}" for y in ys])
+    ax.set_xlim(-0.5, len(xs) - 0.5)
+    ax.set_ylim(-0.5, len(ys) - 0.5)
+    ax.set_xlabel("roller interference R_w + t_r + t_c - (R_bo - d) (mm)")
+    ax.set_ylabel(second)
+    handles = [plt.Rectangle((0, 0), 1, 1, color=colors[k]) for k in ("stick", "partial_slip", "full_slip")]
+    ax.legend(handles, ["stick", "partial slip", "full slip"], loc="upper center", ncol=3, fontsize=8,
+              bbox_to_anchor=(0.5, 1.16))
+    ax.set_title("numbers: band/wheel speed in the hold (%); ring: defaults", fontsize=8, pad=28)
+    fig.tight_layout()
+    path = Path(path)
+    tmp = path.with_name(f".{path.name}.tmp.png")
+    fig.savefig(tmp, dpi=120)
+    plt.close(fig)
+    tmp.replace(path)
+    return path
+
+
+def run_regime_map(params: ParameterSet, out: Path, *, second="b_c", interference_mm=None, factors=None,
+                   workers=None, progress=True, **spec_kw) -> dict:
+    """Run (or resume) the regime map sweep into ``out``; write the map's CSV, JSON and PNG."""
+    from .sweep import run_sweep
+    from .sweep_spec import parse_spec
+
+    if second not in SECOND_AXES:
+        raise ValueError(f"second axis must be one of {sorted(SECOND_AXES)}, got {second!r}")
+    default_i = round(1e3 * params.interference, 6)
+    if interference_mm is None:
+        interference_mm = sorted({round(default_i + k * 0.02, 9) for k in range(-4, 5)})
+    factors = SECOND_AXES[second] if factors is None else factors
+    second_values = sorted({float(params[second] * f) for f in factors})
+    spec = parse_spec(regime_spec(params, interference_mm, second, second_values, **spec_kw))
+    result = run_sweep(spec, out, workers=workers, progress=progress, plot=False)
+    rows = classify_table(result.table, params, second)
+    cols = ["case_id", "interference_mm", second, "hold_wheel_rad_s", "hold_band_rad_s", "band_over_wheel"]
+    write_csv(out / "regime_map.csv", {c: np.array([r[c] for r in rows], float) for c in cols})
+    counts = {k: sum(r["regime"] == k for r in rows) for k in REGIMES}
+    summary = {
+        "second_axis": second, "default": {"interference_mm": default_i, second: float(params[second])},
+        "classification": {"stick": "hold rel. speed < 2 % of wheel speed",
+                           "full_slip": "hold band speed < 20 % of wheel speed", "partial_slip": "otherwise"},
+        "counts": counts,
+        "cases": [{k: (None if isinstance(v, float) and not math.isfinite(v) else v) for k, v in r.items()}
+                  for r in rows],
+    }
+    write_json(out / "regime_map.json", summary)
+    plot_regime_map(rows, second, (default_i, float(params[second])), out / "regime_map.png")
+    return summary
