@@ -5,7 +5,7 @@ PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
 OUT    ?= results
 
-.PHONY: run test derive bench venv clean
+.PHONY: run test derive bench regime venv clean
 
 venv: $(STAMP)
 
@@ -22,6 +22,10 @@ run: $(STAMP)
 ## test: the whole test suite
 test: $(STAMP)
 	$(PY) -m pytest -q
+
+## regime: regime maps (interference x b_c, k_c, m_b) into $(OUT)/regime-*/ (a few minutes; resumable)
+regime: $(STAMP)
+	for axis in b_c k_c m_b; do $(PY) -m szdyn.run regime --second $$axis --out $(OUT)/regime-$$axis || exit 1; done
 
 ## derive: re-derive the model with SymPy and regenerate generated/
 derive: $(STAMP)

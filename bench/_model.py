@@ -29,6 +29,18 @@ def setup(n_circles: int, *, torque: bool = True, seed: int = 0):
     return ps, p, x, drive
 
 
+def window(p, n_circles, x):
+    """``contact_window`` at state ``x`` (its signature gained the largest arm angle ``phi_max``)."""
+    import inspect
+
+    nargs = len(inspect.signature(sz.contact_window.py_func).parameters)
+    if nargs == 2:
+        return int(sz.contact_window(p, n_circles))
+    q_b = x[1]
+    phi_max = float(np.max(np.abs(x[2:2 + n_circles] - q_b)))
+    return int(sz.contact_window(p, n_circles, phi_max))
+
+
 @nb.njit
 def rhs_loop(x, p, drive, out, n_calls):
     """``n_calls`` RHS evaluations in compiled code (the result is accumulated so none is dead)."""

@@ -82,7 +82,7 @@ def plot_regime_map(rows, second: str, default_point, path) -> Path:
               "undefined": "#999999", "failed": "#000000"}
     xs = sorted({r["interference_mm"] for r in rows})
     ys = sorted({r[second] for r in rows})
-    fig, ax = plt.subplots(figsize=(1.0 + 0.75 * len(xs), 1.4 + 0.6 * len(ys)))
+    fig, ax = plt.subplots(figsize=(2.6 + 0.75 * len(xs), 1.6 + 0.6 * len(ys)))
     for r in rows:
         i, j = xs.index(r["interference_mm"]), ys.index(r[second])
         ax.add_patch(plt.Rectangle((i - 0.5, j - 0.5), 1, 1, color=colors[r["regime"]], alpha=0.85))
@@ -97,11 +97,13 @@ def plot_regime_map(rows, second: str, default_point, path) -> Path:
     ax.set_xlim(-0.5, len(xs) - 0.5)
     ax.set_ylim(-0.5, len(ys) - 0.5)
     ax.set_xlabel("roller interference R_w + t_r + t_c - (R_bo - d) (mm)")
-    ax.set_ylabel(second)
+    from szdyn_generated.spiral_zipper import PARAM_DOCS
+
+    ax.set_ylabel(f"{second} ({PARAM_DOCS[second][0]})")
     handles = [plt.Rectangle((0, 0), 1, 1, color=colors[k]) for k in ("stick", "partial_slip", "full_slip")]
-    ax.legend(handles, ["stick", "partial slip", "full slip"], loc="upper center", ncol=3, fontsize=8,
-              bbox_to_anchor=(0.5, 1.16))
-    ax.set_title("numbers: band/wheel speed in the hold (%); ring: defaults", fontsize=8, pad=28)
+    ax.legend(handles, ["stick", "partial slip", "full slip"], loc="upper left", fontsize=8,
+              bbox_to_anchor=(1.01, 1.0))
+    ax.set_title("numbers: band/wheel speed in the hold (%); ring: defaults", fontsize=8)
     fig.tight_layout()
     path = Path(path)
     tmp = path.with_name(f".{path.name}.tmp.png")

@@ -22,9 +22,10 @@ from pathlib import Path
 import numpy as np
 
 from .criteria import evaluate_fig10
-from .io import write_csv, write_json
+from .io import write_json
 from .params import ParameterSet
 from .scenarios import thesis_fig10
+from .simulate import OUTPUT_UNITS
 
 CONTACT_MODELS = {"impact": 0, "coulomb": 1, "lugre": 2}
 CRITERIA_LABELS = {
@@ -111,7 +112,7 @@ def run_fig10(params: ParameterSet, out: Path, *, models=tuple(CONTACT_MODELS), 
                       f"ETA {el / k * (len(jobs) - k):.0f} s", file=sys.stderr, flush=True)
     result = {"scenario": "thesis-fig10", "omega_hold_rad_s": omega_hold, "t_hold_s": t_hold,
               "integration": integ.describe(), "n_circles": params.n_circles,
-              "parameters_file": "params.json", "models": {}}
+              "parameters_file": "params.json", "csv_units": OUTPUT_UNITS, "models": {}}
     panels = {}
     for m in models:
         outputs = {s.name: read_outputs(out / m / f"{s.name}.csv") for s in specs}
