@@ -131,6 +131,7 @@ def _assemble(x, p, q_w, u_w, T_m, m_bi, m_ii, f, c_phi, s_phi, want_energy):
         return M_ww, M_bb, F_w, F_b, n_contacts, V_contacts
     nr = int(p[_I_n_rollers] + 0.5)
     reach = p[_I_t_c] + p[_I_t_r]
+    reach_sq = reach * reach
     pitch = TWO_PI / nc
     ncand = contact_window(p, nc, phi_max)
     cp = math.cos(pitch)
@@ -143,7 +144,7 @@ def _assemble(x, p, q_w, u_w, T_m, m_bi, m_ii, f, c_phi, s_phi, want_energy):
         sr = math.sin(rho)
         for m in range(ncand):
             i = (k + m) % nc
-            if contact_distance(cr, sr, c_phi[i], s_phi[i], p) < reach:
+            if contact_distance_sq(cr, sr, c_phi[i], s_phi[i], p) < reach_sq:
                 dist, delta_dot, v_slide, Gn_w, Gn_b, Gn_i, Gt_w, Gt_b, Gt_i = contact_kernel(
                     cr, sr, c_phi[i], s_phi[i], u_w, u_b, x[n + 2 + i], p)
                 delta = reach - dist

@@ -29,6 +29,13 @@ class _Printer(PythonCodePrinter):
     def _print_Rational(self, e):
         return f"{float(e.p)}/{float(e.q)}"
 
+    def _print_Pow(self, e, rational=False):
+        # A parameter exponent (the impact law's n) would call the slow generic pow on every
+        # contact; `fpow` multiplies for the common integer values and falls back to pow.
+        if e.exp.is_Symbol:
+            return f"fpow({self._print(e.base)}, {self._print(e.exp)})"
+        return super()._print_Pow(e, rational=rational)
+
 
 def _header(kind: str) -> str:
     params = ", ".join(PARAM_NAMES)
@@ -69,7 +76,15 @@ def kernels_module() -> str:
              "One generic circle, one generic roller-circle contact, wheel/band core, force laws and\n"
              "energies. The assembly in ``spiral_zipper.py`` loops over circles and contacts.\n"
              '"""\n',
-             "import math\n\nimport numba as nb\n"]
+             "import math\n\nimport numba as nb\n\n\n"
+             "@nb.njit(cache=True)\n"
+             "def fpow(x, n):\n"
+             '    """x**n, by multiplication for n = 1, 2, 3, 4 (equal to within rounding, much faster than pow)."""\n'
+             "    if n == 3.0:\n        return x * x * x\n"
+             "    if n == 2.0:\n        return x * x\n"
+             "    if n == 4.0:\n        x2 = x * x\n        return x2 * x2\n"
+             "    if n == 1.0:\n        return x\n"
+             "    return x ** n\n"]
     for k in kernels() + energy_kernels():
         parts.append("\n\n" + _function(k.name, k.args, list(k.outputs), k.doc))
     for law in LAWS:
@@ -97,7 +112,7 @@ def spiral_zipper_module(kernels_text: str) -> str:
         "Imports only math, numpy and numba.\n"
         '"""\n'
         "import math\n\nimport numba as nb\nimport numpy as np\n\n"
-        "from .kernels import (circle_energy, circle_kernel, contact_distance, contact_kernel,\n"
+        "from .kernels import (circle_energy, circle_kernel, contact_distance_sq, contact_kernel,\n"
         "                      core_energy, core_kernel, impact_normal_force, impact_potential,\n"
         "                      lugre_force, lugre_z_dot, slider_torque, traction_coulomb_force)\n\n"
         f"KERNELS_SHA256 = \"{digest}\"\n\n"

@@ -148,8 +148,9 @@ def kernels() -> tuple[Kernel, ...]:
         "rate (m/s), sliding speed along z x n (m/s) and the generalized forces per newton of\n"
         "normal (Gn_*) and tangential (Gt_*) force on rows w, b, i (m).",
     )
-    dist_only = Kernel("contact_distance", (c_rho, s_rho, c_phi, s_phi), (("dist", dist),),
-                       "Distance (m) between a roller centre and a circle centre (cheap pre-check).")
+    dist_sq = dist**2
+    dist_only = Kernel("contact_distance_sq", (c_rho, s_rho, c_phi, s_phi), (("dist_sq", dist_sq),),
+                       "Squared distance (m^2) between a roller centre and a circle centre (cheap pre-check).")
     return (core, circ, contact, dist_only)
 
 

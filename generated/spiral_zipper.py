@@ -18,11 +18,11 @@ import math
 import numba as nb
 import numpy as np
 
-from .kernels import (circle_energy, circle_kernel, contact_distance, contact_kernel,
+from .kernels import (circle_energy, circle_kernel, contact_distance_sq, contact_kernel,
                       core_energy, core_kernel, impact_normal_force, impact_potential,
                       lugre_force, lugre_z_dot, slider_torque, traction_coulomb_force)
 
-KERNELS_SHA256 = "d90b2fe2f14bd1dc3fd332ddfdf55e84542a159ab9bca5211fab3b85d449c6c3"
+KERNELS_SHA256 = "d9c2f1640cc628f7ce706a81f533ce035b6b836470b8cd5ded3cb71f9e3abf17"
 
 PARAM_NAMES = (
     "I_W",
@@ -282,6 +282,7 @@ def _assemble(x, p, q_w, u_w, T_m, m_bi, m_ii, f, c_phi, s_phi, want_energy):
         return M_ww, M_bb, F_w, F_b, n_contacts, V_contacts
     nr = int(p[_I_n_rollers] + 0.5)
     reach = p[_I_t_c] + p[_I_t_r]
+    reach_sq = reach * reach
     pitch = TWO_PI / nc
     ncand = contact_window(p, nc, phi_max)
     cp = math.cos(pitch)
@@ -294,7 +295,7 @@ def _assemble(x, p, q_w, u_w, T_m, m_bi, m_ii, f, c_phi, s_phi, want_energy):
         sr = math.sin(rho)
         for m in range(ncand):
             i = (k + m) % nc
-            if contact_distance(cr, sr, c_phi[i], s_phi[i], p) < reach:
+            if contact_distance_sq(cr, sr, c_phi[i], s_phi[i], p) < reach_sq:
                 dist, delta_dot, v_slide, Gn_w, Gn_b, Gn_i, Gt_w, Gt_b, Gt_i = contact_kernel(
                     cr, sr, c_phi[i], s_phi[i], u_w, u_b, x[n + 2 + i], p)
                 delta = reach - dist
