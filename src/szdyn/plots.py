@@ -1,7 +1,10 @@
 """Figures (PNG). Matplotlib is imported lazily with the Agg backend (no display needed)."""
 from __future__ import annotations
 
+import io
 from pathlib import Path
+
+from .io import atomic_write_bytes
 
 
 def _pyplot():
@@ -11,6 +14,14 @@ def _pyplot():
     import matplotlib.pyplot as plt
 
     return plt
+
+
+def save_png(fig, path, dpi: int = 120) -> Path:
+    """Save ``fig`` as PNG atomically (never a half-written image) and close it."""
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=dpi)
+    _pyplot().close(fig)
+    return atomic_write_bytes(path, buf.getvalue())
 
 
 def fig10_grid(panels, result, path) -> Path:
@@ -42,9 +53,4 @@ def fig10_grid(panels, result, path) -> Path:
     fig.suptitle("thesis-fig10: criteria (a) slip at constant speed, (b) set by wheel speed, "
                  "(c) no drop after ramp, (d) rises with wheel speed (+ met, - not met)", fontsize=9)
     fig.tight_layout()
-    path = Path(path)
-    tmp = path.with_name(f".{path.name}.tmp.png")
-    fig.savefig(tmp, dpi=110)
-    plt.close(fig)
-    tmp.replace(path)
-    return path
+    return save_png(fig, path)

@@ -631,7 +631,8 @@ def compare_features(measured: dict, simulated: dict) -> dict:
     -------
     dict of str -> {"value": float, "unit": str, "compared": str}
         ``rel_speed_rms`` (rad/s), ``slip_per_rev_rms`` (rad), ``slip_ratio_vs_speed_rms`` (1),
-        ``stroke_rms`` (m), ``final_stroke_lost_diff`` (m; measured minus simulated). A value
+        ``stroke_rms`` (m), ``final_stroke_lost_diff`` (m; measured minus simulated, at the
+        last time both cover). A value
         is NaN when there is nothing to compare (e.g. no complete revolution).
     """
     out = {}
@@ -667,7 +668,10 @@ def compare_features(measured: dict, simulated: dict) -> dict:
         "value": float(np.sqrt(np.mean(d2 ** 2))) if d2.size else float("nan"), "unit": "m",
         "compared": "RMS difference of the column extension P_B (theta_b - theta_b0)/(2 pi) at "
                     "the measured samples over the common time span"}
+    t_end = min(tm2[-1], ts2[-1])
     out["final_stroke_lost_diff"] = {
-        "value": measured["final_stroke_lost"] - simulated["final_stroke_lost"], "unit": "m",
-        "compared": "stroke lost to slip at the end of each recording, measured minus simulated"}
+        "value": float(np.interp(t_end, tm2, measured["stroke_lost"])
+                       - np.interp(t_end, ts2, simulated["stroke_lost"])), "unit": "m",
+        "compared": f"stroke lost to slip at the common end time t = {t_end:.6g} s (linear "
+                    "interpolation), measured minus simulated"}
     return out

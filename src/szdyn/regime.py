@@ -75,7 +75,7 @@ def _num(s):
 def plot_regime_map(rows, second: str, default_point, path) -> Path:
     """Categorical map: interference (mm) on x, the second parameter on y (log), colour = regime,
     text = band/wheel speed ratio in percent; the default parameter set is marked."""
-    from .plots import _pyplot
+    from .plots import _pyplot, save_png
 
     plt = _pyplot()
     colors = {"stick": "#4c72b0", "partial_slip": "#55a868", "full_slip": "#c44e52",
@@ -105,12 +105,7 @@ def plot_regime_map(rows, second: str, default_point, path) -> Path:
               bbox_to_anchor=(1.01, 1.0))
     ax.set_title("numbers: band/wheel speed in the hold (%); ring: defaults", fontsize=8)
     fig.tight_layout()
-    path = Path(path)
-    tmp = path.with_name(f".{path.name}.tmp.png")
-    fig.savefig(tmp, dpi=120)
-    plt.close(fig)
-    tmp.replace(path)
-    return path
+    return save_png(fig, path)
 
 
 def run_regime_map(params: ParameterSet, out: Path, *, second="b_c", interference_mm=None, factors=None,

@@ -2,7 +2,9 @@
 
 A residual ``r(t)`` (measured minus simulated, e.g. of the smoothed relative speed) is
 analysed on a **uniform** grid (:func:`uniform_residual`), because correlation and spectra
-assume equally spaced samples. What is offered:
+assume equally spaced samples. A residual of *smoothed* signals must first be thinned to the
+smoothing window (:func:`thin`), otherwise the smoothing alone makes it non-white. What is
+offered:
 
 * **Whiteness**: :func:`autocorrelation` with the 99 % band ``+- z_{0.995} / sqrt(N)`` and
   :func:`whiteness_test` with the Ljung-Box statistic
@@ -35,7 +37,7 @@ from scipy import signal, stats
 from szdyn.errors import UserInputError
 
 __all__ = [
-    "uniform_residual", "autocorrelation", "ljung_box", "WhitenessResult", "whiteness_test",
+    "uniform_residual", "thin", "autocorrelation", "ljung_box", "WhitenessResult", "whiteness_test",
     "CrossCorrelationResult", "cross_correlation", "Segment", "regime_labels",
     "direction_labels", "speed_bin_labels", "phase_bin_labels", "time_window_labels",
     "segment_stats", "localise", "phase_profile", "Peak", "welch_dof", "spectral_peaks",
@@ -77,6 +79,29 @@ def uniform_residual(t, r, dt: float | None = None):
     m = int(math.floor((t[-1] - t[0]) / dt + 1e-9)) + 1
     tu = t[0] + dt * np.arange(m)
     return tu, np.interp(tu, t, r)
+
+
+def thin(t, r, step_s: float):
+    """Resample a residual of *smoothed* signals at the smoothing window, for the tests here.
+
+    Ljung's whiteness and spectral tests assume that, under a correct model, the residual is
+    white. A residual of Savitzky-Golay speeds over ``window_s`` is not (neighbouring grid
+    points share most of their window) but its samples ``window_s`` apart come from disjoint
+    windows and are independent. Use ``step_s = window_s`` before :func:`whiteness_test`,
+    :func:`cross_correlation` or :func:`spectral_peaks` on such a residual.
+
+    Parameters
+    ----------
+    t, r : array_like, shape (n,)
+        Time (s) and residual.
+    step_s : float
+        New uniform step (s).
+
+    Returns
+    -------
+    tu, ru : ndarray, shape (m,)
+    """
+    return uniform_residual(t, r, step_s)
 
 
 def _acf(x, max_lag):

@@ -701,10 +701,9 @@ def plot_metrics(path, spec: SweepSpec, rows, header) -> Path | None:
     """One panel per metric against the first swept variable (see module docstring)."""
     if not spec.variables:
         return None
-    import matplotlib
+    from .plots import _pyplot, save_png
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = _pyplot()
 
     idx = {h: i for i, h in enumerate(header)}
     ok = [r for r in rows if r[1] == "ok"]
@@ -756,10 +755,7 @@ def plot_metrics(path, spec: SweepSpec, rows, header) -> Path | None:
     fig.suptitle(f"{Path(spec.source).name or 'sweep'}: {len(ok)} ok"
                  + (f", {failed} not ok" if failed else ""), fontsize=11)
     fig.tight_layout()
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=110)
-    plt.close(fig)
-    return atomic_write_bytes(path, buf.getvalue())
+    return save_png(fig, path, dpi=110)
 
 
 def _units():
