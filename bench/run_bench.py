@@ -103,6 +103,12 @@ def main(argv=None) -> int:
             parts.append(f"## {key}: FAILED\n\n```\n{tb[-3000:]}\n```")
         log(f"section {key} done in {time.perf_counter() - t0:.1f} s")
     wall = time.perf_counter() - t_start
+    end_hash = model_info()["generated/ sha256"]
+    if end_hash != info["generated/ sha256"]:
+        log("WARNING: generated/ changed while the benchmarks ran")
+        parts.insert(0, f"> **Warning:** `generated/` changed while the benchmarks ran (sha256 "
+                        f"{info['generated/ sha256']} at start, {end_hash} at the end); sections may "
+                        "mix two versions of the model. Re-run on a quiet tree.")
     text = "\n\n".join([header(info, args.quick, wall, load)] + parts) + "\n"
     write_atomic(args.out, text)
     log(f"wrote {args.out} ({wall:.0f} s)")

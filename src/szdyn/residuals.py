@@ -114,7 +114,9 @@ def _acf(x, max_lag):
     nfft = 1 << (2 * n - 1).bit_length()
     f = np.fft.rfft(x, nfft)
     c = np.fft.irfft(f * np.conj(f), nfft)[: max_lag + 1] / n
-    return c / c0
+    rho = c / c[0]
+    rho[0] = 1.0
+    return rho
 
 
 def autocorrelation(r, max_lag: int = 25, alpha: float = 0.01):
