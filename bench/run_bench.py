@@ -8,14 +8,14 @@ written atomically (temporary file + ``os.replace``).
 Sections (one module each in ``bench/``):
 1. derivation time (``sec_derivation``), 2. cold compile (``sec_compile``),
 3. RHS evaluation vs a lambdify baseline (``sec_rhs``), 4. thesis-like scenario (``sec_scenario``),
-5. scaling in N_c (``sec_scaling``), 6. where the time goes + FLOP estimate (``sec_breakdown``).
+5. scaling in N_c (``sec_scaling``), 6. where the time goes + FLOP estimate (``sec_breakdown``),
+7. sweep throughput on all cores against one (``sec_sweep``).
 """
 from __future__ import annotations
 
 import argparse
 import os
 import sys
-import tempfile
 import time
 import traceback
 from pathlib import Path
@@ -26,6 +26,7 @@ for _p in (str(_HERE), str(_HERE.parent)):  # bench helpers, and the repo root f
         sys.path.insert(0, _p)
 
 from _common import fmt_time, log, machine, model_info, table  # noqa: E402
+from szdyn.io import atomic_write_text  # noqa: E402
 
 SECTIONS = {
     "derivation": "sec_derivation",
@@ -34,26 +35,8 @@ SECTIONS = {
     "scenario": "sec_scenario",
     "scaling": "sec_scaling",
     "breakdown": "sec_breakdown",
+    "sweep": "sec_sweep",
 }
-
-
-def write_atomic(path: Path, text: str) -> None:
-    """Write ``text`` to ``path`` via a temporary file in the same directory and ``os.replace``."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as fh:
-            fh.write(text)
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
-        raise
 
 
 def header(info: dict, quick: bool, wall: float, load: tuple) -> str:
@@ -110,7 +93,7 @@ def main(argv=None) -> int:
                         f"{info['generated/ sha256']} at start, {end_hash} at the end); sections may "
                         "mix two versions of the model. Re-run on a quiet tree.")
     text = "\n\n".join([header(info, args.quick, wall, load)] + parts) + "\n"
-    write_atomic(args.out, text)
+    atomic_write_text(args.out, text)
     log(f"wrote {args.out} ({wall:.0f} s)")
     return 1 if failed else 0
 
