@@ -10,8 +10,8 @@ from pathlib import Path
 import sympy as sm
 from sympy.printing.pycode import PythonCodePrinter
 
-from .force_laws import LAWS, LawFunction
-from .kernels import Kernel, energy_kernels, kernels
+from .force_laws import LAWS
+from .kernels import energy_kernels, kernels
 import hashlib
 
 from .symbols import AUX_STATES, PARAMETERS, PARAM_NAMES

@@ -16,7 +16,7 @@ from derive.codegen import generate
 from derive.force_laws import SliderFriction
 from derive.force_laws import z as Z_LUGRE
 from derive.kernels import T_m, energy_kernels, full_system, kernels
-from derive.symbols import P, PARAM_NAMES, circle_coordinates, q_b, q_w, t, u_b, u_w
+from derive.symbols import P, PARAM_NAMES, circle_coordinates, q_b, q_w, t
 from szdyn_generated import kernels as gk
 from szdyn_generated import spiral_zipper as sz
 

@@ -63,7 +63,7 @@ import numpy as np
 from .errors import ParameterError, SimulationError, UserInputError
 from .io import atomic_write_bytes, atomic_write_text, write_json
 from .metrics import Metric, evaluate_metrics, metric_unit
-from .sweep_spec import SpecError, SweepSpec, build_drive, load_spec, spec_diff
+from .sweep_spec import SweepSpec, build_drive, load_spec, spec_diff
 
 __all__ = ["run_sweep", "run_case", "sweep_command", "SweepResult", "assemble", "load_spec"]
 
