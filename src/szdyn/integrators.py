@@ -174,6 +174,23 @@ def _stage_state(A, st, x, K, h, xs):
 
 
 @njit(cache=True)
+def _eval_stages(A, c, x, K, xs, t, h, p, drive, have_k0):
+    """Evaluate the stage derivatives of one explicit RK step into K (stage 0 is skipped when
+    FSAL already holds it). Returns ``(stage, var, t_stage)`` of the first non-finite derivative,
+    or ``(-1, -1, t)``."""
+    for st in range(A.shape[0]):
+        if st == 0 and have_k0:
+            continue
+        _stage_state(A, st, x, K, h, xs)
+        ts = t + c[st] * h
+        _rhs(ts, xs, p, drive, K[st])
+        bad = _first_nonfinite(K[st])
+        if bad >= 0:
+            return st, bad, ts
+    return -1, -1, t
+
+
+@njit(cache=True)
 def _fixed_kernel(A, b, c, fsal, x, K, xs, xn, have_k0, t0, dt, t_end, i_start, i_stop, n_steps,
                   save_every, out, p, drive):
     """Fixed-step explicit RK over global step indices ``i_start <= i < i_stop``.
@@ -196,15 +213,9 @@ def _fixed_kernel(A, b, c, fsal, x, K, xs, xn, have_k0, t0, dt, t_end, i_start, 
         t = t0 + i * dt
         t_next = t_end if i + 1 == n_steps else t0 + (i + 1) * dt
         h = t_next - t
-        for st in range(s):
-            if st == 0 and have_k0:
-                continue
-            _stage_state(A, st, x, K, h, xs)
-            ts = t + c[st] * h
-            _rhs(ts, xs, p, drive, K[st])
-            bad = _first_nonfinite(K[st])
-            if bad >= 0:
-                return NONFINITE, i, t, ts, bad, have_k0
+        _, bad, ts = _eval_stages(A, c, x, K, xs, t, h, p, drive, have_k0)
+        if bad >= 0:
+            return NONFINITE, i, t, ts, bad, have_k0
         if fsal:
             for j in range(n):  # last stage was evaluated exactly at the new state
                 xn[j] = xs[j]
@@ -271,20 +282,9 @@ def _adaptive_kernel(A, b, c, e, fsal, expo, x, K, xs, xn, t, h, errold, last_re
             return status, t, h_step, errold, last_rejected, have_k0, k_next, n_acc, n_rej, \
                 t_bad, var
         # ---- stages
-        bad = -1
-        st_bad = 0
-        for st in range(s):
-            if st == 0 and have_k0:
-                continue
-            _stage_state(A, st, x, K, h_step, xs)
-            ts = t + c[st] * h_step
-            _rhs(ts, xs, p, drive, K[st])
-            bad = _first_nonfinite(K[st])
-            if bad >= 0:
-                st_bad = st
-                t_bad = ts
-                break
+        st_bad, bad, ts = _eval_stages(A, c, x, K, xs, t, h_step, p, drive, have_k0)
         if bad >= 0:
+            t_bad = ts
             var = bad
             if st_bad == 0:  # derivative at the accepted state itself: no step size helps
                 return (NONFINITE, t, h_step, errold, last_rejected, have_k0, k_next, n_acc,
