@@ -95,7 +95,7 @@ def traction_torque(x, p, u_w):
 
 
 @nb.njit(cache=True)
-def _assemble(x, p, q_w, u_w, T_m, m_bi, m_ii, f, c_phi, s_phi, want_energy):
+def _assemble(t, x, p, q_w, u_w, T_m, m_bi, m_ii, f, c_phi, s_phi, want_energy):
     """Arrowhead mass matrix and forcing of the whole system.
 
     Fills the band-circle coupling ``m_bi``, circle diagonal ``m_ii`` and circle forcing ``f``
@@ -109,7 +109,8 @@ def _assemble(x, p, q_w, u_w, T_m, m_bi, m_ii, f, c_phi, s_phi, want_energy):
     q_b = x[1]
     u_b = x[n + 1]
     model = int(p[_I_contact_model] + 0.5)
-    M_ww, M_bb, F_w, F_b = core_kernel(T_m, slider_torque(u_b, p), traction_torque(x, p, u_w), p)
+    tau_b = slider_torque(u_b, p) + band_effects_torque(t, q_b, u_b, p)
+    M_ww, M_bb, F_w, F_b = core_kernel(T_m, tau_b, traction_torque(x, p, u_w), p)
     phi_max = 0.0
     for i in range(nc):
         phi = x[2 + i] - q_b
@@ -152,6 +153,11 @@ def _assemble(x, p, q_w, u_w, T_m, m_bi, m_ii, f, c_phi, s_phi, want_energy):
                 F_w += f_n * Gn_w
                 F_b += f_n * Gn_b
                 f[i] += f_n * Gn_i
+                if p[_I_mu_t] != 0.0:  # wheel_band_traction (candidate effect)
+                    f_t = traction_tangential_force(f_n, v_slide, p)
+                    F_w += f_t * Gt_w
+                    F_b += f_t * Gt_b
+                    f[i] += f_t * Gt_i
                 n_contacts += 1
                 if want_energy:
                     V_contacts += impact_potential(delta, p)
@@ -162,13 +168,22 @@ def _assemble(x, p, q_w, u_w, T_m, m_bi, m_ii, f, c_phi, s_phi, want_energy):
 
 @nb.njit(cache=True)
 def _wheel(t, x, p, drive):
-    """Wheel (angle, speed, acceleration, motor torque) from the drive or the state."""
-    n = x.shape[0] // 2
-    if p[_I_drive_mode] < 0.5:
+    """Wheel (angle, speed, acceleration, motor torque) from the drive or the state.
+
+    drive_mode 0: the drive prescribes the wheel's motion; 1: the drive is the motor torque;
+    2: the drive prescribes the motor's motion and a compliant drive (k_drive, c_drive)
+    carries the torque to the wheel, whose motion is then a state like the band's.
+    """
+    n = n_circles_of(x.shape[0]) + 2
+    mode = int(p[_I_drive_mode] + 0.5)
+    if mode == 0:
         q_w, u_w, acc_w = drive_eval(drive, t)
         return q_w, u_w, acc_w, 0.0
-    _, T_m, _ = drive_eval(drive, t)
-    return x[0], x[n], 0.0, T_m
+    if mode == 1:
+        _, T_m, _ = drive_eval(drive, t)
+        return x[0], x[n], 0.0, T_m
+    motor_angle, motor_speed, _ = drive_eval(drive, t)
+    return x[0], x[n], 0.0, drive_compliance_torque(motor_angle, motor_speed, x[0], x[n], p)
 
 
 @nb.njit(cache=True)
@@ -185,7 +200,7 @@ def rhs(t, x, p, drive, out):
     m_ii = work[nc:2 * nc]
     f = work[2 * nc:3 * nc]
     q_w, u_w, acc_w, T_m = _wheel(t, x, p, drive)
-    M_ww, M_bb, F_w, F_b, _, _ = _assemble(x, p, q_w, u_w, T_m, m_bi, m_ii, f,
+    M_ww, M_bb, F_w, F_b, _, _ = _assemble(t, x, p, q_w, u_w, T_m, m_bi, m_ii, f,
                                            work[3 * nc:4 * nc], work[4 * nc:5 * nc], False)
     for k in range(n):
         out[k] = x[n + k]
@@ -221,7 +236,7 @@ def mass_matrix_forcing(t, x, p, drive):
     n = nc + 2
     work = np.empty(5 * nc)
     q_w, u_w, acc_w, T_m = _wheel(t, x, p, drive)
-    M_ww, M_bb, F_w, F_b, _, _ = _assemble(x, p, q_w, u_w, T_m, work[0:nc], work[nc:2 * nc],
+    M_ww, M_bb, F_w, F_b, _, _ = _assemble(t, x, p, q_w, u_w, T_m, work[0:nc], work[nc:2 * nc],
                                            work[2 * nc:3 * nc], work[3 * nc:4 * nc], work[4 * nc:], False)
     M = np.zeros((n, n))
     F = np.zeros(n)
@@ -244,7 +259,7 @@ def wheel_reaction_torque(t, x, p, drive):
     nc = n_circles_of(x.shape[0])
     work = np.empty(5 * nc)
     q_w, u_w, acc_w, T_m = _wheel(t, x, p, drive)
-    M_ww, M_bb, F_w, F_b, _, _ = _assemble(x, p, q_w, u_w, 0.0, work[0:nc], work[nc:2 * nc],
+    M_ww, M_bb, F_w, F_b, _, _ = _assemble(t, x, p, q_w, u_w, 0.0, work[0:nc], work[nc:2 * nc],
                                            work[2 * nc:3 * nc], work[3 * nc:4 * nc], work[4 * nc:], False)
     return F_w
 
@@ -258,7 +273,7 @@ def energy(x, p):
     nc = n_circles_of(x.shape[0])
     n = nc + 2
     work = np.empty(5 * nc)
-    _, _, _, _, _, V = _assemble(x, p, x[0], x[n], 0.0, work[0:nc], work[nc:2 * nc],
+    _, _, _, _, _, V = _assemble(0.0, x, p, x[0], x[n], 0.0, work[0:nc], work[nc:2 * nc],
                                  work[2 * nc:3 * nc], work[3 * nc:4 * nc], work[4 * nc:], True)
     E = core_energy(x[n], x[n + 1], p) + V
     for i in range(nc):
@@ -272,7 +287,7 @@ def contact_count(t, x, p, drive):
     nc = n_circles_of(x.shape[0])
     work = np.empty(5 * nc)
     q_w, u_w, acc_w, T_m = _wheel(t, x, p, drive)
-    _, _, _, _, nct, _ = _assemble(x, p, q_w, u_w, T_m, work[0:nc], work[nc:2 * nc],
+    _, _, _, _, nct, _ = _assemble(t, x, p, q_w, u_w, T_m, work[0:nc], work[nc:2 * nc],
                                    work[2 * nc:3 * nc], work[3 * nc:4 * nc], work[4 * nc:], False)
     return nct
 

@@ -150,4 +150,73 @@ class TractionLuGre:
         ]
 
 
-LAWS = (HuntCrossleyImpact(), SliderFriction(), TractionCoulomb(), TractionLuGre())
+tt, q = sm.symbols("t q_b", real=True)
+
+
+class BandEffects:
+    """Candidate effects that the thesis's model leaves out, as torques on the band (issue 5).
+
+    Each is one named term with its own parameters and is off when they are 0; the sum is the
+    extra band torque of the model. ``speed`` is the band speed u_b (rad/s), ``q`` its angle
+    (rad), ``tt`` the time (s).
+    """
+
+    name = "band_effects"
+
+    def terms(self, u=speed, qb=q, time=tt) -> dict:
+        slider = SliderFriction().torque(u)
+        sat = sm.Max(-1, sm.Min(1, u / P["gamma"]))  # sign(u) regularised like the slider law
+        return {
+            "slider_viscous": -P["c_visc"] * u,
+            "slider_stribeck": -P["R_bo"] * P["m_b"] * P["g"] * P["mu_st"] * sm.exp(-((u / P["v_st"]) ** 2)) * sat,
+            "friction_asymmetry": P["fric_asym"] * sm.sign(u) * slider,
+            "load_lift": -P["tau_lift"],
+            "position_periodic": -P["a_rev"] * sm.sin(qb + P["phi_rev"])
+                                 - P["a_tooth"] * sm.sin(P["n_teeth"] * qb + P["phi_tooth"]),
+            "friction_drift": P["k_drift"] * time * slider,
+        }
+
+    def torque(self, u=speed, qb=q, time=tt) -> sm.Expr:
+        return sum(self.terms(u, qb, time).values())
+
+    def functions(self) -> list[LawFunction]:
+        out = [LawFunction(f"effect_{k}", (tt, q, speed), v, f"Band torque (N m) of candidate effect {k}.")
+               for k, v in self.terms().items()]
+        out.append(LawFunction("band_effects_torque", (tt, q, speed), self.torque(),
+                               "Sum of the candidate effects' band torques (N m); 0 with their parameters at 0."))
+        return out
+
+
+class ContactTraction:
+    """wheel_band_traction: tangential (rubber) friction at each roller-circle contact, which the
+    thesis's model omits: ``f_t = -mu_t f_n tanh(v_slide / v_teps)`` on the circle along the
+    contact tangent, opposing the circle's sliding relative to the roller surface."""
+
+    name = "wheel_band_traction"
+
+    def force(self, fn=sm.Symbol("f_n", real=True), v=slip) -> sm.Expr:
+        return -P["mu_t"] * fn * sm.tanh(v / P["v_teps"])
+
+    def functions(self) -> list[LawFunction]:
+        fn = sm.Symbol("f_n", real=True)
+        return [LawFunction("traction_tangential_force", (fn, slip), self.force(fn, slip),
+                            "Tangential force (N) on the circle along z x n at normal force f_n (N) and sliding speed slip (m/s).")]
+
+
+class DriveCompliance:
+    """drive_compliance (drive_mode 2): the encoder measures the motor, whose motion is prescribed;
+    a torsional spring-damper (k_drive, c_drive) carries the torque to the wheel."""
+
+    name = "drive_compliance"
+
+    def torque(self, motor_angle, motor_speed, q_w, u_w) -> sm.Expr:
+        return P["k_drive"] * (motor_angle - q_w) + P["c_drive"] * (motor_speed - u_w)
+
+    def functions(self) -> list[LawFunction]:
+        a, w, qw, uw = sm.symbols("motor_angle motor_speed q_w u_w", real=True)
+        return [LawFunction("drive_compliance_torque", (a, w, qw, uw), self.torque(a, w, qw, uw),
+                            "Torque (N m) on the wheel from the compliant drive at motor angle/speed and wheel angle/speed.")]
+
+
+LAWS = (HuntCrossleyImpact(), SliderFriction(), TractionCoulomb(), TractionLuGre(), BandEffects(),
+        ContactTraction(), DriveCompliance())

@@ -27,7 +27,8 @@ import sympy as sm
 import sympy.physics.mechanics as me
 
 from . import kinematics as kin
-from .force_laws import ArmSpringDamper, HuntCrossleyImpact, SliderFriction, TractionCoulomb, TractionLuGre, z as z_lugre
+from .force_laws import (ArmSpringDamper, BandEffects, ContactTraction, HuntCrossleyImpact, SliderFriction,
+                         TractionCoulomb, TractionLuGre, tt as t_sym, z as z_lugre)
 from .symbols import P, alpha, beta, circle_coordinates, phi, q_b, q_w, rho, t, u_b, u_w
 
 f_n, f_t, T_m, tau_b, tau_wb = sm.symbols("f_n f_t T_m tau_b tau_wb", real=True)
@@ -185,9 +186,10 @@ def full_system(n_circles: int, n_rollers: int, contact_model: int = 0) -> FullS
     """Derive the complete model with one ``KanesMethod`` call (all loads in place).
 
     Frames are oriented from N (absolute angles), unlike the kernels. The motor torque is the
-    symbol ``T_m``; the slider friction and the contact laws enter with their full
-    expressions: impacts at every roller-circle pair (``contact_model = 0``) or the lumped
-    Coulomb (1) or LuGre (2, bristle deflection symbol ``z``) wheel-band friction.
+    symbol ``T_m``; the slider friction, the candidate band effects (time symbol ``t``) and
+    the contact laws enter with their full expressions: impacts with tangential traction at
+    every roller-circle pair (``contact_model = 0``) or the lumped Coulomb (1) or LuGre (2,
+    bristle deflection symbol ``z``) wheel-band friction.
     """
     mech = kin.mechanism()
     impact = HuntCrossleyImpact()
@@ -205,13 +207,14 @@ def full_system(n_circles: int, n_rollers: int, contact_model: int = 0) -> FullS
         me.RigidBody("band", mech.O, mech.B, sm.S.One, (me.inertia(mech.B, 0, 0, P["I_B"]), mech.O)),
     ] + [c.particle for c in circles]
     pair = 0 if contact_model == 0 else traction_torque(contact_model, (P["R_w"] + P["t_r"]) * (u_w - u_b), z_lugre)
-    loads = core_loads(mech, T_m, slider.torque(u_b), pair)
+    band_torque = slider.torque(u_b) + BandEffects().torque(u_b, q_b, t_sym)
+    loads = core_loads(mech, T_m, band_torque, pair)
     for c in circles:
         loads += arm_loads(c, mech)
         for rl in (rollers if contact_model == 0 else []):
             g = kin.contact_geometry(mech, c, rl)
             fn = sm.Piecewise((impact.normal_force(g.delta, g.delta_dot), g.delta > 0), (0, True))
-            _, cl = contact_loads(mech, c, rl, fn, 0)
+            _, cl = contact_loads(mech, c, rl, fn, ContactTraction().force(fn, g.v_slide))
             loads += cl
     M, F = _kane_on(mech, q, u, bodies, loads)
     return FullSystem(q, u, M, F, n_circles, n_rollers)

@@ -47,7 +47,8 @@ PARAMETERS: tuple[Param, ...] = (
     Param("gamma", "rad/s", "slider static band: band speed below which friction is regularised", "> 0"),
     Param("m_b", "kg", "mass whose weight loads the slider (normal force m_b g)", ">= 0"),
     Param("g", "m/s^2", "gravitational acceleration", "> 0"),
-    Param("drive_mode", "1", "0: prescribed wheel motion (drive array is speed); 1: motor torque", "one of 0,1"),
+    Param("drive_mode", "1", "0: prescribed wheel motion (drive array is speed); 1: motor torque; "
+          "2: prescribed motor motion through a compliant drive (k_drive, c_drive)", "one of 0,1,2"),
     # Counter-models (issue 3): the wheel drives the band by tangential friction at the roller
     # contact radius r_c = R_w + t_r instead of by impacts.
     Param("contact_model", "1", "wheel-band transmission: 0 impacts (thesis), 1 Coulomb friction, 2 LuGre friction", "one of 0,1,2"),
@@ -59,6 +60,22 @@ PARAMETERS: tuple[Param, ...] = (
     Param("sigma0", "N/m", "LuGre bristle stiffness", "> 0"),
     Param("sigma1", "N*s/m", "LuGre bristle damping", ">= 0"),
     Param("sigma2", "N*s/m", "LuGre viscous friction", ">= 0"),
+    # Candidate effects the thesis's model leaves out (issue 5). Each is off at 0.
+    Param("c_visc", "N*m*s/rad", "slider_viscous: viscous torque -c_visc u_b on the band", ">= 0"),
+    Param("mu_st", "1", "slider_stribeck: extra friction coefficient at low band speed", ">= 0"),
+    Param("v_st", "rad/s", "slider_stribeck: band speed over which the extra friction decays", "> 0"),
+    Param("fric_asym", "1", "friction_asymmetry: slider friction scaled by (1 + fric_asym sign(u_b))", "real"),
+    Param("tau_lift", "N*m", "load_lift: constant torque of the payload weight through the helix lead, m g P_B/(2 pi)", "real"),
+    Param("a_rev", "N*m", "position_periodic: torque amplitude once per band revolution", ">= 0"),
+    Param("phi_rev", "rad", "position_periodic: phase of the once-per-revolution torque", "real"),
+    Param("a_tooth", "N*m", "position_periodic: torque amplitude once per tooth pitch", ">= 0"),
+    Param("phi_tooth", "rad", "position_periodic: phase of the per-tooth torque", "real"),
+    Param("n_teeth", "1", "position_periodic: teeth per wrap N (per-tooth period 2 pi / N in q_b)", "positive integer"),
+    Param("k_drift", "1/s", "friction_drift: slider friction scaled by (1 + k_drift t)", "real"),
+    Param("mu_t", "1", "wheel_band_traction: tangential friction coefficient at the roller contacts", ">= 0"),
+    Param("v_teps", "m/s", "wheel_band_traction: regularisation speed of sign(v) ~ tanh(v/v_teps)", "> 0"),
+    Param("k_drive", "N*m/rad", "drive_compliance: torsional stiffness between motor and wheel (drive_mode 2)", ">= 0"),
+    Param("c_drive", "N*m*s/rad", "drive_compliance: torsional damping between motor and wheel (drive_mode 2)", ">= 0"),
 )
 
 #: Auxiliary states appended after the speeds: the LuGre bristle deflection z (m).

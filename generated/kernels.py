@@ -3,7 +3,7 @@
 # Source: derive/codegen.py (run as `python -m derive`), SymPy 1.14.0.
 # Regenerate with `make derive`; tests check that this file is reproduced byte for byte.
 # State order: x = [q_w, q_b, q_1 .. q_Nc, u_w, u_b, u_1 .. u_Nc, z_lugre]  (rad, rad/s, m)
-# Parameter order (p): I_W, I_B, m_c, R_bo, d, t_c, R_w, t_r, n_rollers, k_c, b_c, k_imp, b_imp, n_imp, impact_clamp, mu_s, mu_k, gamma, m_b, g, drive_mode, contact_model, F_nw, mu_ws, mu_wk, v_ws, v_weps, sigma0, sigma1, sigma2
+# Parameter order (p): I_W, I_B, m_c, R_bo, d, t_c, R_w, t_r, n_rollers, k_c, b_c, k_imp, b_imp, n_imp, impact_clamp, mu_s, mu_k, gamma, m_b, g, drive_mode, contact_model, F_nw, mu_ws, mu_wk, v_ws, v_weps, sigma0, sigma1, sigma2, c_visc, mu_st, v_st, fric_asym, tau_lift, a_rev, phi_rev, a_tooth, phi_tooth, n_teeth, k_drift, mu_t, v_teps, k_drive, c_drive
 # ----------------------------------------------------------------------------
 """Scalar kernels of the Spiral Zipper model, derived with sympy KanesMethod.
 
@@ -215,4 +215,124 @@ def lugre_force(slip, z, p):
     v_ws = p[25]
     x0 = sigma0*z
     value = sigma1*(slip - x0*abs(slip)/(F_nw*(mu_wk + (-mu_wk + mu_ws)*math.exp(-slip**2/v_ws**2)))) + sigma2*slip + x0
+    return value
+
+
+@nb.njit(cache=True)
+def effect_slider_viscous(t, q_b, speed, p):
+    """Band torque (N m) of candidate effect slider_viscous."""
+    c_visc = p[30]
+    value = -c_visc*speed
+    return value
+
+
+@nb.njit(cache=True)
+def effect_slider_stribeck(t, q_b, speed, p):
+    """Band torque (N m) of candidate effect slider_stribeck."""
+    R_bo = p[3]
+    g = p[19]
+    gamma = p[17]
+    m_b = p[18]
+    mu_st = p[31]
+    v_st = p[32]
+    value = -R_bo*g*m_b*mu_st*math.exp(-speed**2/v_st**2)*max(-1, min(1, speed/gamma))
+    return value
+
+
+@nb.njit(cache=True)
+def effect_friction_asymmetry(t, q_b, speed, p):
+    """Band torque (N m) of candidate effect friction_asymmetry."""
+    R_bo = p[3]
+    fric_asym = p[33]
+    g = p[19]
+    gamma = p[17]
+    m_b = p[18]
+    mu_k = p[16]
+    mu_s = p[15]
+    x0 = abs(speed)
+    x1 = 1/gamma
+    value = -R_bo*fric_asym*g*m_b*((mu_s*x0*x1) if (gamma >= x0) else (mu_s - x1*(-gamma + x0)*(-2*mu_k + 2*mu_s)) if (x0 <= (3.0/2.0)*gamma) else (mu_k))*(0.0 if speed == 0 else math.copysign(1.0, speed))**2
+    return value
+
+
+@nb.njit(cache=True)
+def effect_load_lift(t, q_b, speed, p):
+    """Band torque (N m) of candidate effect load_lift."""
+    tau_lift = p[34]
+    value = -tau_lift
+    return value
+
+
+@nb.njit(cache=True)
+def effect_position_periodic(t, q_b, speed, p):
+    """Band torque (N m) of candidate effect position_periodic."""
+    a_rev = p[35]
+    a_tooth = p[37]
+    n_teeth = p[39]
+    phi_rev = p[36]
+    phi_tooth = p[38]
+    value = -a_rev*math.sin(phi_rev + q_b) - a_tooth*math.sin(n_teeth*q_b + phi_tooth)
+    return value
+
+
+@nb.njit(cache=True)
+def effect_friction_drift(t, q_b, speed, p):
+    """Band torque (N m) of candidate effect friction_drift."""
+    R_bo = p[3]
+    g = p[19]
+    gamma = p[17]
+    k_drift = p[40]
+    m_b = p[18]
+    mu_k = p[16]
+    mu_s = p[15]
+    x0 = abs(speed)
+    x1 = 1/gamma
+    value = -R_bo*g*k_drift*m_b*t*((mu_s*x0*x1) if (gamma >= x0) else (mu_s - x1*(-gamma + x0)*(-2*mu_k + 2*mu_s)) if (x0 <= (3.0/2.0)*gamma) else (mu_k))*(0.0 if speed == 0 else math.copysign(1.0, speed))
+    return value
+
+
+@nb.njit(cache=True)
+def band_effects_torque(t, q_b, speed, p):
+    """Sum of the candidate effects' band torques (N m); 0 with their parameters at 0."""
+    R_bo = p[3]
+    a_rev = p[35]
+    a_tooth = p[37]
+    c_visc = p[30]
+    fric_asym = p[33]
+    g = p[19]
+    gamma = p[17]
+    k_drift = p[40]
+    m_b = p[18]
+    mu_k = p[16]
+    mu_s = p[15]
+    mu_st = p[31]
+    n_teeth = p[39]
+    phi_rev = p[36]
+    phi_tooth = p[38]
+    tau_lift = p[34]
+    v_st = p[32]
+    x0 = 1/gamma
+    x1 = R_bo*g*m_b
+    x2 = (0.0 if speed == 0 else math.copysign(1.0, speed))
+    x3 = abs(speed)
+    x4 = x1*((mu_s*x0*x3) if (gamma >= x3) else (mu_s - x0*(-gamma + x3)*(-2*mu_k + 2*mu_s)) if (x3 <= (3.0/2.0)*gamma) else (mu_k))
+    value = -a_rev*math.sin(phi_rev + q_b) - a_tooth*math.sin(n_teeth*q_b + phi_tooth) - c_visc*speed - fric_asym*x2**2*x4 - k_drift*t*x2*x4 - mu_st*x1*math.exp(-speed**2/v_st**2)*max(-1, min(1, speed*x0)) - tau_lift
+    return value
+
+
+@nb.njit(cache=True)
+def traction_tangential_force(f_n, slip, p):
+    """Tangential force (N) on the circle along z x n at normal force f_n (N) and sliding speed slip (m/s)."""
+    mu_t = p[41]
+    v_teps = p[42]
+    value = -f_n*mu_t*math.tanh(slip/v_teps)
+    return value
+
+
+@nb.njit(cache=True)
+def drive_compliance_torque(motor_angle, motor_speed, q_w, u_w, p):
+    """Torque (N m) on the wheel from the compliant drive at motor angle/speed and wheel angle/speed."""
+    c_drive = p[44]
+    k_drive = p[43]
+    value = c_drive*(motor_speed - u_w) + k_drive*(motor_angle - q_w)
     return value

@@ -3,7 +3,7 @@
 # Source: derive/codegen.py (run as `python -m derive`), SymPy 1.14.0.
 # Regenerate with `make derive`; tests check that this file is reproduced byte for byte.
 # State order: x = [q_w, q_b, q_1 .. q_Nc, u_w, u_b, u_1 .. u_Nc, z_lugre]  (rad, rad/s, m)
-# Parameter order (p): I_W, I_B, m_c, R_bo, d, t_c, R_w, t_r, n_rollers, k_c, b_c, k_imp, b_imp, n_imp, impact_clamp, mu_s, mu_k, gamma, m_b, g, drive_mode, contact_model, F_nw, mu_ws, mu_wk, v_ws, v_weps, sigma0, sigma1, sigma2
+# Parameter order (p): I_W, I_B, m_c, R_bo, d, t_c, R_w, t_r, n_rollers, k_c, b_c, k_imp, b_imp, n_imp, impact_clamp, mu_s, mu_k, gamma, m_b, g, drive_mode, contact_model, F_nw, mu_ws, mu_wk, v_ws, v_weps, sigma0, sigma1, sigma2, c_visc, mu_st, v_st, fric_asym, tau_lift, a_rev, phi_rev, a_tooth, phi_tooth, n_teeth, k_drift, mu_t, v_teps, k_drive, c_drive
 # ----------------------------------------------------------------------------
 """Spiral Zipper right-hand side: assembly of the generated kernels.
 
@@ -20,9 +20,10 @@ import numpy as np
 
 from .kernels import (circle_energy, circle_kernel, contact_distance_sq, contact_kernel,
                       core_energy, core_kernel, impact_normal_force, impact_potential,
-                      lugre_force, lugre_z_dot, slider_torque, traction_coulomb_force)
+                      lugre_force, lugre_z_dot, slider_torque, traction_coulomb_force,
+                      band_effects_torque, traction_tangential_force, drive_compliance_torque)
 
-KERNELS_SHA256 = "d9c2f1640cc628f7ce706a81f533ce035b6b836470b8cd5ded3cb71f9e3abf17"
+KERNELS_SHA256 = "690dd3c15c7c2f17e46eb3d63d4bd64aa4e704ad7113b632a567d2c0fc396795"
 
 PARAM_NAMES = (
     "I_W",
@@ -55,6 +56,21 @@ PARAM_NAMES = (
     "sigma0",
     "sigma1",
     "sigma2",
+    "c_visc",
+    "mu_st",
+    "v_st",
+    "fric_asym",
+    "tau_lift",
+    "a_rev",
+    "phi_rev",
+    "a_tooth",
+    "phi_tooth",
+    "n_teeth",
+    "k_drift",
+    "mu_t",
+    "v_teps",
+    "k_drive",
+    "c_drive",
 )
 PARAM_INDEX = {name: i for i, name in enumerate(PARAM_NAMES)}
 #: name -> (SI unit, meaning)
@@ -79,7 +95,7 @@ PARAM_DOCS = {
     "gamma": ("rad/s", "slider static band: band speed below which friction is regularised"),
     "m_b": ("kg", "mass whose weight loads the slider (normal force m_b g)"),
     "g": ("m/s^2", "gravitational acceleration"),
-    "drive_mode": ("1", "0: prescribed wheel motion (drive array is speed); 1: motor torque"),
+    "drive_mode": ("1", "0: prescribed wheel motion (drive array is speed); 1: motor torque; 2: prescribed motor motion through a compliant drive (k_drive, c_drive)"),
     "contact_model": ("1", "wheel-band transmission: 0 impacts (thesis), 1 Coulomb friction, 2 LuGre friction"),
     "F_nw": ("N", "friction counter-models: total normal force of the rollers on the band"),
     "mu_ws": ("1", "friction counter-models: static (breakaway) coefficient, roller on band"),
@@ -89,6 +105,21 @@ PARAM_DOCS = {
     "sigma0": ("N/m", "LuGre bristle stiffness"),
     "sigma1": ("N*s/m", "LuGre bristle damping"),
     "sigma2": ("N*s/m", "LuGre viscous friction"),
+    "c_visc": ("N*m*s/rad", "slider_viscous: viscous torque -c_visc u_b on the band"),
+    "mu_st": ("1", "slider_stribeck: extra friction coefficient at low band speed"),
+    "v_st": ("rad/s", "slider_stribeck: band speed over which the extra friction decays"),
+    "fric_asym": ("1", "friction_asymmetry: slider friction scaled by (1 + fric_asym sign(u_b))"),
+    "tau_lift": ("N*m", "load_lift: constant torque of the payload weight through the helix lead, m g P_B/(2 pi)"),
+    "a_rev": ("N*m", "position_periodic: torque amplitude once per band revolution"),
+    "phi_rev": ("rad", "position_periodic: phase of the once-per-revolution torque"),
+    "a_tooth": ("N*m", "position_periodic: torque amplitude once per tooth pitch"),
+    "phi_tooth": ("rad", "position_periodic: phase of the per-tooth torque"),
+    "n_teeth": ("1", "position_periodic: teeth per wrap N (per-tooth period 2 pi / N in q_b)"),
+    "k_drift": ("1/s", "friction_drift: slider friction scaled by (1 + k_drift t)"),
+    "mu_t": ("1", "wheel_band_traction: tangential friction coefficient at the roller contacts"),
+    "v_teps": ("m/s", "wheel_band_traction: regularisation speed of sign(v) ~ tanh(v/v_teps)"),
+    "k_drive": ("N*m/rad", "drive_compliance: torsional stiffness between motor and wheel (drive_mode 2)"),
+    "c_drive": ("N*m*s/rad", "drive_compliance: torsional damping between motor and wheel (drive_mode 2)"),
 }
 #: name -> admissible values, checked by szdyn.params.validate
 PARAM_BOUNDS = {
@@ -112,7 +143,7 @@ PARAM_BOUNDS = {
     "gamma": "> 0",
     "m_b": ">= 0",
     "g": "> 0",
-    "drive_mode": "one of 0,1",
+    "drive_mode": "one of 0,1,2",
     "contact_model": "one of 0,1,2",
     "F_nw": ">= 0",
     "mu_ws": ">= 0",
@@ -122,6 +153,21 @@ PARAM_BOUNDS = {
     "sigma0": "> 0",
     "sigma1": ">= 0",
     "sigma2": ">= 0",
+    "c_visc": ">= 0",
+    "mu_st": ">= 0",
+    "v_st": "> 0",
+    "fric_asym": "real",
+    "tau_lift": "real",
+    "a_rev": ">= 0",
+    "phi_rev": "real",
+    "a_tooth": ">= 0",
+    "phi_tooth": "real",
+    "n_teeth": "positive integer",
+    "k_drift": "real",
+    "mu_t": ">= 0",
+    "v_teps": "> 0",
+    "k_drive": ">= 0",
+    "c_drive": ">= 0",
 }
 
 AUX_STATES = ('z_lugre',)
@@ -157,6 +203,21 @@ _I_v_weps = 26
 _I_sigma0 = 27
 _I_sigma1 = 28
 _I_sigma2 = 29
+_I_c_visc = 30
+_I_mu_st = 31
+_I_v_st = 32
+_I_fric_asym = 33
+_I_tau_lift = 34
+_I_a_rev = 35
+_I_phi_rev = 36
+_I_a_tooth = 37
+_I_phi_tooth = 38
+_I_n_teeth = 39
+_I_k_drift = 40
+_I_mu_t = 41
+_I_v_teps = 42
+_I_k_drive = 43
+_I_c_drive = 44
 
 TWO_PI = 2.0 * math.pi
 
@@ -246,7 +307,7 @@ def traction_torque(x, p, u_w):
 
 
 @nb.njit(cache=True)
-def _assemble(x, p, q_w, u_w, T_m, m_bi, m_ii, f, c_phi, s_phi, want_energy):
+def _assemble(t, x, p, q_w, u_w, T_m, m_bi, m_ii, f, c_phi, s_phi, want_energy):
     """Arrowhead mass matrix and forcing of the whole system.
 
     Fills the band-circle coupling ``m_bi``, circle diagonal ``m_ii`` and circle forcing ``f``
@@ -260,7 +321,8 @@ def _assemble(x, p, q_w, u_w, T_m, m_bi, m_ii, f, c_phi, s_phi, want_energy):
     q_b = x[1]
     u_b = x[n + 1]
     model = int(p[_I_contact_model] + 0.5)
-    M_ww, M_bb, F_w, F_b = core_kernel(T_m, slider_torque(u_b, p), traction_torque(x, p, u_w), p)
+    tau_b = slider_torque(u_b, p) + band_effects_torque(t, q_b, u_b, p)
+    M_ww, M_bb, F_w, F_b = core_kernel(T_m, tau_b, traction_torque(x, p, u_w), p)
     phi_max = 0.0
     for i in range(nc):
         phi = x[2 + i] - q_b
@@ -303,6 +365,11 @@ def _assemble(x, p, q_w, u_w, T_m, m_bi, m_ii, f, c_phi, s_phi, want_energy):
                 F_w += f_n * Gn_w
                 F_b += f_n * Gn_b
                 f[i] += f_n * Gn_i
+                if p[_I_mu_t] != 0.0:  # wheel_band_traction (candidate effect)
+                    f_t = traction_tangential_force(f_n, v_slide, p)
+                    F_w += f_t * Gt_w
+                    F_b += f_t * Gt_b
+                    f[i] += f_t * Gt_i
                 n_contacts += 1
                 if want_energy:
                     V_contacts += impact_potential(delta, p)
@@ -313,13 +380,22 @@ def _assemble(x, p, q_w, u_w, T_m, m_bi, m_ii, f, c_phi, s_phi, want_energy):
 
 @nb.njit(cache=True)
 def _wheel(t, x, p, drive):
-    """Wheel (angle, speed, acceleration, motor torque) from the drive or the state."""
-    n = x.shape[0] // 2
-    if p[_I_drive_mode] < 0.5:
+    """Wheel (angle, speed, acceleration, motor torque) from the drive or the state.
+
+    drive_mode 0: the drive prescribes the wheel's motion; 1: the drive is the motor torque;
+    2: the drive prescribes the motor's motion and a compliant drive (k_drive, c_drive)
+    carries the torque to the wheel, whose motion is then a state like the band's.
+    """
+    n = n_circles_of(x.shape[0]) + 2
+    mode = int(p[_I_drive_mode] + 0.5)
+    if mode == 0:
         q_w, u_w, acc_w = drive_eval(drive, t)
         return q_w, u_w, acc_w, 0.0
-    _, T_m, _ = drive_eval(drive, t)
-    return x[0], x[n], 0.0, T_m
+    if mode == 1:
+        _, T_m, _ = drive_eval(drive, t)
+        return x[0], x[n], 0.0, T_m
+    motor_angle, motor_speed, _ = drive_eval(drive, t)
+    return x[0], x[n], 0.0, drive_compliance_torque(motor_angle, motor_speed, x[0], x[n], p)
 
 
 @nb.njit(cache=True)
@@ -336,7 +412,7 @@ def rhs(t, x, p, drive, out):
     m_ii = work[nc:2 * nc]
     f = work[2 * nc:3 * nc]
     q_w, u_w, acc_w, T_m = _wheel(t, x, p, drive)
-    M_ww, M_bb, F_w, F_b, _, _ = _assemble(x, p, q_w, u_w, T_m, m_bi, m_ii, f,
+    M_ww, M_bb, F_w, F_b, _, _ = _assemble(t, x, p, q_w, u_w, T_m, m_bi, m_ii, f,
                                            work[3 * nc:4 * nc], work[4 * nc:5 * nc], False)
     for k in range(n):
         out[k] = x[n + k]
@@ -372,7 +448,7 @@ def mass_matrix_forcing(t, x, p, drive):
     n = nc + 2
     work = np.empty(5 * nc)
     q_w, u_w, acc_w, T_m = _wheel(t, x, p, drive)
-    M_ww, M_bb, F_w, F_b, _, _ = _assemble(x, p, q_w, u_w, T_m, work[0:nc], work[nc:2 * nc],
+    M_ww, M_bb, F_w, F_b, _, _ = _assemble(t, x, p, q_w, u_w, T_m, work[0:nc], work[nc:2 * nc],
                                            work[2 * nc:3 * nc], work[3 * nc:4 * nc], work[4 * nc:], False)
     M = np.zeros((n, n))
     F = np.zeros(n)
@@ -395,7 +471,7 @@ def wheel_reaction_torque(t, x, p, drive):
     nc = n_circles_of(x.shape[0])
     work = np.empty(5 * nc)
     q_w, u_w, acc_w, T_m = _wheel(t, x, p, drive)
-    M_ww, M_bb, F_w, F_b, _, _ = _assemble(x, p, q_w, u_w, 0.0, work[0:nc], work[nc:2 * nc],
+    M_ww, M_bb, F_w, F_b, _, _ = _assemble(t, x, p, q_w, u_w, 0.0, work[0:nc], work[nc:2 * nc],
                                            work[2 * nc:3 * nc], work[3 * nc:4 * nc], work[4 * nc:], False)
     return F_w
 
@@ -409,7 +485,7 @@ def energy(x, p):
     nc = n_circles_of(x.shape[0])
     n = nc + 2
     work = np.empty(5 * nc)
-    _, _, _, _, _, V = _assemble(x, p, x[0], x[n], 0.0, work[0:nc], work[nc:2 * nc],
+    _, _, _, _, _, V = _assemble(0.0, x, p, x[0], x[n], 0.0, work[0:nc], work[nc:2 * nc],
                                  work[2 * nc:3 * nc], work[3 * nc:4 * nc], work[4 * nc:], True)
     E = core_energy(x[n], x[n + 1], p) + V
     for i in range(nc):
@@ -423,7 +499,7 @@ def contact_count(t, x, p, drive):
     nc = n_circles_of(x.shape[0])
     work = np.empty(5 * nc)
     q_w, u_w, acc_w, T_m = _wheel(t, x, p, drive)
-    _, _, _, _, nct, _ = _assemble(x, p, q_w, u_w, T_m, work[0:nc], work[nc:2 * nc],
+    _, _, _, _, nct, _ = _assemble(t, x, p, q_w, u_w, T_m, work[0:nc], work[nc:2 * nc],
                                    work[2 * nc:3 * nc], work[3 * nc:4 * nc], work[4 * nc:], False)
     return nct
 

@@ -32,10 +32,20 @@ def random_params(rng: np.random.Generator, interference: float = 0.6e-3, drive_
         F_nw=rng.uniform(1, 20), mu_ws=rng.uniform(0.6, 1.0), v_ws=rng.uniform(1e-3, 1e-2),
         v_weps=rng.uniform(1e-4, 1e-3), sigma0=rng.uniform(1e4, 1e5), sigma1=rng.uniform(10, 300),
         sigma2=rng.uniform(0, 1),
+        # candidate effects, all switched on so that the oracle checks them
+        c_visc=rng.uniform(0, 1e-3), mu_st=rng.uniform(0, 0.2), v_st=rng.uniform(0.1, 1.0),
+        fric_asym=rng.uniform(-0.3, 0.3), tau_lift=rng.uniform(-0.1, 0.1), a_rev=rng.uniform(0, 0.05),
+        phi_rev=rng.uniform(-3, 3), a_tooth=rng.uniform(0, 0.02), phi_tooth=rng.uniform(-3, 3),
+        n_teeth=float(rng.integers(10, 30)), k_drift=rng.uniform(-0.05, 0.05), mu_t=rng.uniform(0, 1.0),
+        v_teps=rng.uniform(1e-4, 1e-2), k_drive=rng.uniform(1, 50), c_drive=rng.uniform(0, 0.05),
     )
     v["mu_wk"] = v["mu_ws"] * rng.uniform(0.5, 1.0)
     v["mu_k"] = v["mu_s"] * rng.uniform(0.5, 1.0)
     return v
+
+
+#: The candidate effects switched off (their zero values).
+EFFECTS_OFF = dict(c_visc=0.0, mu_st=0.0, fric_asym=0.0, tau_lift=0.0, a_rev=0.0, a_tooth=0.0, k_drift=0.0, mu_t=0.0)
 
 
 def random_state(rng: np.random.Generator, n_circles: int, gamma: float) -> np.ndarray:

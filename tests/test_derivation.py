@@ -11,9 +11,10 @@ import pytest
 import sympy as sm
 import sympy.physics.mechanics as me
 
-from cases import constant_drive, param_vector, random_params, random_state
+from cases import EFFECTS_OFF, constant_drive, param_vector, random_params, random_state
 from derive.codegen import generate
 from derive.force_laws import SliderFriction
+from derive.force_laws import tt as T_SYM
 from derive.force_laws import z as Z_LUGRE
 from derive.kernels import T_m, energy_kernels, full_system, kernels
 from derive.symbols import P, PARAM_NAMES, circle_coordinates, q_b, q_w, t
@@ -27,7 +28,7 @@ PSYMS = [P[n] for n in PARAM_NAMES]
 def _lambdify_full(fs):
     q, u = fs.q, fs.u
     # "math" evaluates Piecewise lazily (numpy would evaluate both branches).
-    return sm.lambdify((q, u, PSYMS, T_m, Z_LUGRE), (fs.mass_matrix, fs.forcing),
+    return sm.lambdify((q, u, PSYMS, T_m, Z_LUGRE, T_SYM), (fs.mass_matrix, fs.forcing),
                        modules=[{"ImmutableDenseMatrix": np.array}, "math"], cse=True)
 
 
@@ -50,8 +51,9 @@ def test_assembly_equals_full_kane(n_circles, n_rollers, contact_model):
         if trial % 4:  # put a roller near some circle so that contacts are exercised
             x[0] = x[1] + 2 * np.pi * rng.integers(n_circles) / n_circles + rng.normal(0, 0.04)
         T = rng.uniform(-0.5, 0.5)
-        M_ref, F_ref = f(x[:n], x[n:2 * n], p, T, x[2 * n])
-        M, F = sz.mass_matrix_forcing(0.0, x, p, constant_drive(T))
+        t = rng.uniform(0, 10)
+        M_ref, F_ref = f(x[:n], x[n:2 * n], p, T, x[2 * n], t)
+        M, F = sz.mass_matrix_forcing(t, x, p, constant_drive(T))
         np.testing.assert_allclose(M, np.asarray(M_ref, float), rtol=1e-10, atol=1e-14)
         scale = np.abs(np.asarray(F_ref, float)).max()
         np.testing.assert_allclose(F, np.asarray(F_ref, float).ravel(), rtol=1e-10, atol=1e-10 * scale)
@@ -90,7 +92,7 @@ def test_independent_lagrange_derivation():
     rng = np.random.default_rng(7)
     for _ in range(20):
         v = random_params(rng, interference=-2e-3)  # no contact: it is not in this derivation
-        v["n_rollers"] = 3
+        v.update(EFFECTS_OFF, n_rollers=3)  # nor are the candidate effects
         p = param_vector(**v)
         x = random_state(rng, nc, v["gamma"])
         Tq = rng.uniform(-1, 1)
@@ -137,23 +139,38 @@ def test_generated_kernel_equals_symbolic(kernel):
         np.testing.assert_allclose(got, ref, rtol=1e-12, atol=1e-300)
 
 
-@pytest.mark.parametrize("law_fn", ["impact_normal_force", "slider_torque", "slider_mu", "impact_potential"])
-def test_generated_force_laws_equal_symbolic(law_fn):
+def _law_functions():
     from derive.force_laws import LAWS
 
-    fn = next(f for law in LAWS for f in law.functions() if f.name == law_fn)
+    return [f for law in LAWS for f in law.functions()]
+
+
+def _law_argument(name, rng, v):
+    if name == "speed":  # band speed: every branch of the slider law, both directions
+        return rng.choice([-1, 1]) * v["gamma"] * rng.uniform(0, 3)
+    if name == "delta":
+        return rng.uniform(0, 1e-3)
+    if name == "z":
+        return rng.uniform(-1e-4, 1e-4)
+    if name == "f_n":
+        return rng.uniform(0, 50)
+    if name == "slip":
+        return rng.uniform(-0.05, 0.05)
+    return rng.uniform(-5, 5)  # t, q_b, delta_dot, angles and speeds of the drive
+
+
+@pytest.mark.parametrize("fn", _law_functions(), ids=lambda f: f.name)
+def test_generated_force_laws_equal_symbolic(fn):
+    """Every emitted force law (including each candidate effect) equals its symbolic expression."""
     ref = sm.lambdify((fn.args, PSYMS), fn.expr, modules="math")
-    gen = getattr(gk, law_fn)
+    gen = getattr(gk, fn.name)
     rng = np.random.default_rng(3)
     for _ in range(200):
         v = random_params(rng)
         v["n_rollers"] = 8
         p = param_vector(**v)
-        if len(fn.args) == 1:
-            a = [rng.choice([-1, 1]) * v["gamma"] * rng.uniform(0, 3)] if "slider" in law_fn else [rng.uniform(0, 1e-3)]
-        else:
-            a = [rng.uniform(0, 1e-3), rng.uniform(-5, 5)]
-        assert gen(*a, p) == pytest.approx(ref(a, p), rel=1e-12, abs=1e-300)
+        a = [_law_argument(str(arg), rng, v) for arg in fn.args]
+        assert gen(*a, p) == pytest.approx(ref(a, p), rel=1e-12, abs=1e-14)
 
 
 def test_slider_law_is_continuous_and_odd():

@@ -145,3 +145,35 @@ def test_no_contact_means_band_does_not_move():
     drive = Ramp(a=math.pi, t_end=0.3).to_array(angle0=params.initial_state()[0])
     traj = integrate(params.initial_state(), params.to_array(), drive, 0.3, method="rk4", dt=1e-5, save_dt=1e-3)
     assert np.abs(traj.x[:, NC + 3]).max() == 0.0
+
+
+def test_compliant_drive_is_the_torque_drive_with_the_coupling_torque():
+    """drive_mode 2: the drive prescribes the motor; the wheel feels k_drive (motor - wheel angle)
+    + c_drive (motor - wheel speed) as its motor torque, nothing else changes."""
+    rng = np.random.default_rng(9)
+    params = default_parameters(n_circles=NC)
+    x = _spinning_state(params, rng)
+    n = NC + 2
+    motor = RampHold(a=2.0, t_ramp=1.0, t_hold=1.0)
+    arr = motor.to_array(angle0=0.1)
+    for t in (0.0, 0.3, 1.5):
+        angle, speed, _ = motor.evaluate(t, angle0=0.1)
+        v = params.values
+        torque = v["k_drive"] * (angle - x[0]) + v["c_drive"] * (speed - x[n])
+        out2, out1 = np.empty_like(x), np.empty_like(x)
+        sz.rhs(t, x, params.replace(drive_mode=2).to_array(), arr, out2)
+        sz.rhs(t, x, params.replace(drive_mode=1).to_array(), Torque(t=[0.0], torque=[torque]).to_array(), out1)
+        np.testing.assert_allclose(out2, out1, rtol=1e-12, atol=1e-12)
+        assert out2[0] == x[n]  # the wheel angle is a state: its rate is the state's speed
+
+
+def test_stiff_compliant_drive_follows_the_motor():
+    from szdyn.simulate import simulate
+
+    params = default_parameters(n_circles=NC).replace(drive_mode=2, k_drive=50.0, c_drive=0.05)
+    run = simulate(params, RampHold(a=2.0, t_ramp=0.3, t_hold=0.2), 0.5, method="dopri5", rtol=1e-8, atol=1e-10)
+    motor_angle, motor_speed, _ = RampHold(a=2.0, t_ramp=0.3, t_hold=0.2).evaluate(run.outputs["t"])
+    assert run.params["drive_mode"] == 2
+    wind_up = run.outputs["q_w"] - params.initial_state()[0] - motor_angle
+    assert np.abs(wind_up).max() < 2e-3  # rad: the coupling winds up a little under the load
+    assert np.abs(wind_up).max() > 0  # ...but it does (the wheel is a state, not the profile)

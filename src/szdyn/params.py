@@ -38,6 +38,7 @@ POSITIVE = "> 0"  # strictly positive real
 NONNEG = ">= 0"  # non-negative real
 POSINT = "positive integer"
 CHOICE = "one of "  # prefix: "one of 0,1,2"
+REAL = "real"  # any finite value (signed effect parameters)
 
 
 def _bounds() -> dict[str, tuple[str, str]]:
@@ -160,6 +161,8 @@ def validate(values: Mapping[str, float], n_circles: int, names=None) -> dict[st
             raise ParameterError(f"parameter '{name}' must be >= 0{u}, got {_fmt(v)}")
         if kind == POSINT and not (v > 0.0 and v == int(v)):
             raise ParameterError(f"parameter '{name}' must be a positive integer, got {_fmt(v)}")
+        if kind not in (POSITIVE, NONNEG, POSINT, REAL) and not kind.startswith(CHOICE):
+            raise RuntimeError(f"parameter '{name}' has an unknown bound kind {kind!r} in derive/symbols.py")
         if kind.startswith(CHOICE) and v not in {float(c) for c in kind[len(CHOICE):].split(",")}:
             raise ParameterError(f"parameter '{name}' must be {kind}, got {_fmt(v)}")
         out[name] = v

@@ -68,7 +68,7 @@ def compute_outputs(params: ParameterSet, drive, traj: Trajectory, p: np.ndarray
     n = nc + 2
     t = traj.t
     x = traj.x
-    if drive.mode == "speed":
+    if params["drive_mode"] == 0:
         # The prescribed motion is exact; the state's copy of it carries integration error.
         q_w, u_w, _ = drive.evaluate(t, angle0=float(x[0, 0]))
     else:
@@ -95,7 +95,9 @@ def simulate(params: ParameterSet, drive, t_end: float, *, method: str = "rk4", 
     Parameters
     ----------
     params : ParameterSet
-        Model parameters (SI); ``drive_mode`` is taken from the drive profile.
+        Model parameters (SI). ``drive_mode`` follows the drive profile (speed profile: 0,
+        torque: 1), except that a speed profile with ``drive_mode = 2`` in ``params`` prescribes
+        the motor, coupled to the wheel by the compliant drive (k_drive, c_drive).
     drive : Ramp, RampHold, Trapezoid, Sampled or Torque
         Wheel drive profile (:mod:`szdyn.drive`).
     t_end : float
@@ -110,7 +112,10 @@ def simulate(params: ParameterSet, drive, t_end: float, *, method: str = "rk4", 
     progress : callable(float), optional
         Called with the completed fraction between compiled chunks.
     """
-    params = params.replace(drive_mode=drive.drive_mode)
+    mode = drive.drive_mode
+    if mode == 0 and params["drive_mode"] == 2:
+        mode = 2  # a speed profile prescribes the motor, which drives the wheel through a compliance
+    params = params.replace(drive_mode=mode)
     p = params.to_array()
     x0 = params.initial_state() if x0 is None else np.asarray(x0, dtype=float)
     drive_arr = drive.to_array(angle0=float(x0[0]))
