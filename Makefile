@@ -30,6 +30,9 @@ regime: $(STAMP)
 ## derive: re-derive the model with SymPy and regenerate generated/
 derive: $(STAMP)
 	$(PY) -m derive --out generated
+	# Numba keys a cached function on its own file only: after a regeneration, drop every
+	# compiled cache so that nothing built against the old model is ever loaded.
+	find generated src -name '*.nbi' -delete -o -name '*.nbc' -delete
 
 ## bench: benchmarks, written to BENCHMARKS.md
 bench: $(STAMP)

@@ -504,6 +504,22 @@ def contact_count(t, x, p, drive):
     return nct
 
 
+@nb.njit(cache=True)
+def per_sample_outputs(t, xs, p, drive):
+    """Contact count and contact torque on the wheel (N m) at each saved sample.
+
+    ``t`` shape (n,), ``xs`` shape (n, len(x)); returns two arrays of shape (n,). Lives here,
+    not in the runtime, so that its compiled code is rebuilt whenever the model is regenerated.
+    """
+    n = t.shape[0]
+    counts = np.empty(n)
+    torque = np.empty(n)
+    for k in range(n):
+        counts[k] = contact_count(t[k], xs[k], p, drive)
+        torque[k] = wheel_reaction_torque(t[k], xs[k], p, drive)
+    return counts, torque
+
+
 def state_names(n_circles):
     """Names of the state entries, in order."""
     qs = ["q_w", "q_b"] + [f"q_{i}" for i in range(1, n_circles + 1)]

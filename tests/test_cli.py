@@ -108,7 +108,7 @@ def test_regime_map_small(tmp_path):
 
 
 def test_sweep_and_regime_commands_are_registered(capsys):
-    for cmd in ("sweep", "regime"):
+    for cmd in ("sweep", "regime", "synth"):
         with pytest.raises(SystemExit) as exc:
             main([cmd, "--help"])
         assert exc.value.code == 0

@@ -2,7 +2,8 @@
 
 Commands: ``simulate`` (the default: scenario ``thesis-fig10`` on the built-in defaults, one CSV
 per run, a Fig. 10-style PNG, params.json and thesis-fig10.json), ``sweep SPEC.toml`` (parameter
-sweeps, parallel and resumable) and ``regime`` (regime map). ``COMMAND --help`` for each.
+sweeps, parallel and resumable), ``regime`` (regime map) and ``synth`` (synthetic recordings
+with a concealed effect, for proving the diagnosis). ``COMMAND --help`` for each.
 """
 from __future__ import annotations
 
@@ -154,7 +155,14 @@ def sweep_command(argv) -> int:
     return run_sweep_command(argv)
 
 
-COMMANDS = {"simulate": simulate_command, "sweep": sweep_command, "regime": regime_command}
+def synth_command(argv) -> int:
+    from .synth import synth_command as run_synth_command
+
+    return run_synth_command(argv)
+
+
+COMMANDS = {"simulate": simulate_command, "sweep": sweep_command, "regime": regime_command,
+            "synth": synth_command}
 
 
 def main(argv=None) -> int:

@@ -3,7 +3,6 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-import numba as nb
 import numpy as np
 
 from szdyn_generated import spiral_zipper as model
@@ -20,18 +19,6 @@ OUTPUT_UNITS = {
     "rel_speed": "rad/s", "slip_ratio": "1", "stroke": "m", "stroke_lost": "m",
     "contacts": "1", "wheel_reaction_torque": "N*m",
 }
-
-
-@nb.njit(cache=True)
-def _per_sample(t, xs, p, drive):
-    """Contact count and contact torque on the wheel at each saved sample."""
-    n = t.shape[0]
-    counts = np.empty(n)
-    torque = np.empty(n)
-    for k in range(n):
-        counts[k] = model.contact_count(t[k], xs[k], p, drive)
-        torque[k] = model.wheel_reaction_torque(t[k], xs[k], p, drive)
-    return counts, torque
 
 
 @dataclass
@@ -78,7 +65,7 @@ def compute_outputs(params: ParameterSet, drive, traj: Trajectory, p: np.ndarray
     moving = np.abs(u_w) >= SLIP_RATIO_MIN_SPEED
     slip = np.where(moving, rel / np.where(moving, u_w, 1.0), 0.0)
     geom = params.geometry
-    counts, torque = _per_sample(t, np.ascontiguousarray(x), p, drive_arr)
+    counts, torque = model.per_sample_outputs(t, np.ascontiguousarray(x), p, drive_arr)
     return {
         "t": t, "q_w": q_w, "q_b": q_b, "u_w": u_w, "u_b": u_b, "rel_speed": rel,
         "slip_ratio": slip, "stroke": geom.stroke(q_b - q_b[0]),

@@ -1,0 +1,597 @@
+"""Synthetic test-rig recordings from a richer truth model (issue 5): ``python -m szdyn.run synth``.
+
+What is generated
+-----------------
+For one seed the generator builds a *truth model* and logs it the way the rig would:
+
+1. **Perturbed coefficients.** The thesis's "arbitrarily chosen" or probe coefficients ``k_c,
+   b_c, k_imp, b_imp, mu_k`` are each multiplied by a seeded lognormal factor
+   ``exp(perturb * z)``, ``z ~ N(0, 1)`` clipped to +-3. ``mu_s`` is perturbed through its excess
+   over ``mu_k``: ``mu_s' = mu_k' + (mu_s - mu_k) exp(perturb * z)``, so that ``mu_s' >= mu_k'``
+   always holds (the model requires it).
+2. **One concealed effect** from :data:`EFFECTS` (or ``"none"``) at an amplitude given by the
+   caller or drawn (seeded) from the effect's *realistic range* (below).
+3. **Several loads and ramps.** Each load (kg) sets ``m_b``; each ramp is a wheel-speed
+   ramp-and-hold (:class:`szdyn.drive.RampHold`) of ~4.5-5 s. The default ramps reach +pi,
+   +2 pi and -pi rad/s (a negative ramp so that ``friction_asymmetry`` is observable; two
+   held speeds so that a viscous term is separable from Coulomb friction).
+4. **Integration** with classic RK4 at a fixed step ``dt = 2e-5 s`` (default), i.e. another
+   integrator and a finer step than the fit's adaptive ``dopri5``, so that a fit of the
+   recordings is not an "inverse crime".
+5. **Sensor model** (:class:`szdyn.sensors.SensorModel`, defaults: 4096/2048 counts/rev,
+   0.2 count noise, 500 Hz logger with +-100 us jitter, 0.2 % dropped rows, 1 us stamps),
+   seeded per recording. ``theta_w`` is the *motor-side* encoder: with ``drive_compliance``
+   it reads the motor angle (the prescribed profile), not the wheel behind the compliance;
+   without it motor and wheel coincide.
+
+Outputs in ``out_dir``: one CSV per (load, ramp) (format of :mod:`szdyn.recordings`),
+``manifest.toml`` (``[[recording]]`` with ``load_kg`` and ``n_circles``; ``[split] heldout``
+naming about a third of the recordings, one per load on a "diagonal" of the load x ramp grid
+where possible) and ``truth.json``.
+
+``truth.json`` is the hidden answer (effect id, amplitude, its parameter or sensor changes,
+the perturbed coefficients and factors, seed, integrator, sensor settings, ramps). **It is for
+scoring only: a diagnosis must never read it** (it reads ``manifest.toml`` and the CSVs).
+
+Realistic amplitude ranges
+--------------------------
+Reference quantities (nominal defaults, not the perturbed truth): slider kinetic torque
+``tau_k = R_bo g m_ref mu_k`` with ``m_ref = 1 kg`` (0.0736 N m), reference held wheel speed
+``omega_ref = pi rad/s`` (the thesis's hold speed), band pitch ``P_B`` (41.7 mm).
+
+=================== ===================== ================== =================================
+effect              amplitude means       range (drawn)      parameters set
+=================== ===================== ================== =================================
+slider_viscous      viscous torque at     0.1 - 0.4          ``c_visc = A tau_k / omega_ref``
+                    omega_ref / tau_k
+slider_stribeck     extra low-speed       0.2 - 0.6          ``mu_st = A mu_k``, ``v_st``
+                    friction / mu_k                          log-uniform 0.2-1.0 rad/s (drawn)
+friction_asymmetry  relative friction     +-(0.1 - 0.3)      ``fric_asym = A``
+                    difference by sign    (random sign)
+load_lift           payload lifted (kg)   0.3 - 1.5          ``tau_lift = A g P_B / (2 pi)``
+                                                             (same payload in every recording)
+position_periodic   once-per-rev torque   0.1 - 0.3          ``a_rev = A tau_k``, ``phi_rev``
+                    amplitude / tau_k                        ~ U(0, 2 pi) (drawn)
+friction_drift      relative friction     +-(0.1 - 0.3)      ``k_drift = A / T_max``
+                    change over the       (random sign)      (T_max: longest recording; the
+                    longest recording                        model's time restarts per run)
+wheel_band_traction mu_t                  0.1 - 0.5          ``mu_t = A``
+drive_compliance    wind-up (deg) under   1 - 5              ``drive_mode = 2``,
+                    tau_k                                    ``k_drive = tau_k / radians(A)``
+encoder_scale       band-encoder scale    +-(0.005 - 0.03)   sensor ``encoder_scale_b = 1 + A``
+                    error                 (random sign)
+encoder_delay       band-encoder delay    0.002 - 0.020      sensor ``encoder_delay_b = A``
+                    (s)
+=================== ===================== ================== =================================
+
+An amplitude of exactly 0 switches the effect off (no parameter or sensor change), so the
+recordings equal those of ``"none"`` with the same seed bit for bit. Amplitudes outside the
+realistic range are accepted (for benchmark sweeps) with a note on stderr.
+
+Random streams are separate per purpose (``numpy.random.default_rng([seed, k])``: perturbation,
+effect draws, split, and one per recording for the sensor), so the effect never shifts the
+noise of another recording, and the output is a deterministic function of the arguments.
+"""
+from __future__ import annotations
+
+import argparse
+import difflib
+import json
+import math
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from collections.abc import Callable
+
+import numpy as np
+
+from szdyn.errors import SimulationError, UserInputError
+from szdyn.io import atomic_write_text, write_json
+
+__all__ = ["Effect", "EFFECTS", "EFFECT_IDS", "RampSpec", "DEFAULT_RAMPS", "QUICK_RAMPS",
+           "PERTURBED", "SynthError", "synthesize", "synth_command", "effect_changes",
+           "perturbed_coefficients"]
+
+#: Thesis/probe coefficients perturbed in the truth model.
+PERTURBED = ("k_c", "b_c", "k_imp", "b_imp", "mu_s", "mu_k")
+#: Reference load (kg) and held wheel speed (rad/s) that define the relative amplitudes.
+REF_LOAD_KG = 1.0
+REF_SPEED = math.pi
+
+# random-stream ids (numpy.random.default_rng([seed, id]))
+_S_PERTURB, _S_EFFECT, _S_SPLIT, _S_SENSOR = 1, 2, 3, 100
+
+
+class SynthError(UserInputError):
+    """A mistake in the generator's arguments (unknown effect, bad amplitude, ...)."""
+
+
+# --------------------------------------------------------------------------- ramps
+@dataclass(frozen=True)
+class RampSpec:
+    """A ramp-and-hold wheel-speed profile: ``omega = a t`` up to ``t_ramp``, then held.
+
+    Attributes
+    ----------
+    name : str
+        Used in the file name (letters, digits, ``_``, ``-``).
+    a : float
+        Acceleration (rad/s^2), any sign; ``a < 0`` runs the band backwards.
+    t_ramp, t_hold : float
+        Ramp and hold durations (s).
+    """
+
+    name: str
+    a: float
+    t_ramp: float
+    t_hold: float
+
+    @property
+    def t_end(self) -> float:
+        return self.t_ramp + self.t_hold
+
+    @property
+    def omega_hold(self) -> float:
+        return self.a * self.t_ramp
+
+    def drive(self):
+        from szdyn.drive import RampHold
+
+        return RampHold(a=self.a, t_ramp=self.t_ramp, t_hold=self.t_hold)
+
+    def to_dict(self) -> dict:
+        return {"name": self.name, "a": self.a, "t_ramp": self.t_ramp, "t_hold": self.t_hold,
+                "omega_hold": self.omega_hold, "t_end": self.t_end}
+
+
+DEFAULT_RAMPS = (
+    RampSpec("up_pi", 0.5 * math.pi, 2.0, 3.0),     # thesis 0.5 pi rad/s^2 to pi rad/s, 5 s
+    RampSpec("up_2pi", math.pi, 2.0, 2.5),          # to 2 pi rad/s, 4.5 s
+    RampSpec("down_pi", -0.4 * math.pi, 2.5, 2.5),  # to -pi rad/s, 5 s
+)
+QUICK_RAMPS = (
+    RampSpec("up", 2.0 * math.pi, 0.25, 0.25),
+    RampSpec("down", -2.0 * math.pi, 0.25, 0.25),
+)
+QUICK_N_CIRCLES = 16
+
+
+# --------------------------------------------------------------------------- effects
+@dataclass(frozen=True)
+class Effect:
+    """One concealed effect of the library.
+
+    Attributes
+    ----------
+    id : str
+    kind : {"model", "sensor"}
+        Model parameters or :class:`~szdyn.sensors.SensorModel` fields.
+    amplitude : str
+        What the amplitude ``A`` means (with unit).
+    range : (float, float)
+        Realistic magnitude range; a drawn amplitude is uniform in it.
+    signed : bool
+        A drawn amplitude gets a random sign; a given one may be negative.
+    doc : str
+        How ``A`` maps to parameters (see the module table).
+    build : callable(A, ctx, rng) -> dict
+        Parameter (kind "model") or sensor-field (kind "sensor") changes for ``A != 0``.
+    """
+
+    id: str
+    kind: str
+    amplitude: str
+    range: tuple
+    signed: bool
+    doc: str
+    build: Callable
+
+
+def _ctx(n_circles: int, ramps) -> dict:
+    from szdyn.defaults import default_parameters
+
+    p = default_parameters(n_circles)
+    tau_k = p["R_bo"] * p["g"] * REF_LOAD_KG * p["mu_k"]
+    return {"tau_k": tau_k, "omega_ref": REF_SPEED, "pitch": p.geometry.pitch, "g": p["g"],
+            "mu_k": p["mu_k"], "t_max": max(r.t_end for r in ramps)}
+
+
+def _stribeck(A, c, rng):
+    v_st = float(math.exp(rng.uniform(math.log(0.2), math.log(1.0))))
+    return {"mu_st": A * c["mu_k"], "v_st": v_st}
+
+
+def _periodic(A, c, rng):
+    return {"a_rev": A * c["tau_k"], "phi_rev": float(rng.uniform(0.0, 2 * math.pi))}
+
+
+EFFECTS: dict[str, Effect] = {e.id: e for e in (
+    Effect("slider_viscous", "model", "viscous torque at pi rad/s as a fraction of tau_k",
+           (0.1, 0.4), False, "c_visc = A tau_k / pi",
+           lambda A, c, rng: {"c_visc": A * c["tau_k"] / c["omega_ref"]}),
+    Effect("slider_stribeck", "model", "extra low-speed friction coefficient as a fraction of mu_k",
+           (0.2, 0.6), False, "mu_st = A mu_k; v_st log-uniform in [0.2, 1] rad/s", _stribeck),
+    Effect("friction_asymmetry", "model", "relative slider-friction difference between directions",
+           (0.1, 0.3), True, "fric_asym = A",
+           lambda A, c, rng: {"fric_asym": A}),
+    Effect("load_lift", "model", "payload mass lifted by the column (kg)",
+           (0.3, 1.5), False, "tau_lift = A g P_B / (2 pi)",
+           lambda A, c, rng: {"tau_lift": A * c["g"] * c["pitch"] / (2 * math.pi)}),
+    Effect("position_periodic", "model", "once-per-band-revolution torque as a fraction of tau_k",
+           (0.1, 0.3), False, "a_rev = A tau_k; phi_rev uniform in [0, 2 pi)", _periodic),
+    Effect("friction_drift", "model", "relative slider-friction change over the longest recording",
+           (0.1, 0.3), True, "k_drift = A / T_max",
+           lambda A, c, rng: {"k_drift": A / c["t_max"]}),
+    Effect("wheel_band_traction", "model", "tangential friction coefficient mu_t at the rollers",
+           (0.1, 0.5), False, "mu_t = A",
+           lambda A, c, rng: {"mu_t": A}),
+    Effect("drive_compliance", "model", "motor-wheel wind-up under tau_k (degrees)",
+           (1.0, 5.0), False, "drive_mode = 2, k_drive = tau_k / radians(A)",
+           lambda A, c, rng: {"drive_mode": 2.0, "k_drive": c["tau_k"] / math.radians(A)}),
+    Effect("encoder_scale", "sensor", "relative scale error of the band encoder",
+           (0.005, 0.03), True, "encoder_scale_b = 1 + A",
+           lambda A, c, rng: {"encoder_scale_b": 1.0 + A}),
+    Effect("encoder_delay", "sensor", "band-encoder delay (s)",
+           (0.002, 0.020), False, "encoder_delay_b = A",
+           lambda A, c, rng: {"encoder_delay_b": A}),
+)}
+#: all ids the generator accepts
+EFFECT_IDS = ("none",) + tuple(EFFECTS)
+
+
+def check_effect(effect: str) -> str:
+    """Return ``effect`` if known, else raise :class:`SynthError` with a did-you-mean."""
+    if effect in EFFECT_IDS:
+        return effect
+    close = difflib.get_close_matches(str(effect), EFFECT_IDS, n=1, cutoff=0.4)
+    hint = f" (did you mean '{close[0]}'?)" if close else ""
+    raise SynthError(f"unknown effect '{effect}'{hint}; known: {', '.join(EFFECT_IDS)}")
+
+
+def effect_changes(effect: str, amplitude=None, *, seed: int = 0, n_circles: int = 100,
+                   ramps=DEFAULT_RAMPS) -> tuple[float, dict, dict]:
+    """The switch of one effect: ``(amplitude, model_changes, sensor_changes)``.
+
+    ``amplitude=None`` draws it from the effect's realistic range (seeded); 0 gives no
+    changes. Cheap (no simulation).
+    """
+    check_effect(effect)
+    if effect == "none":
+        if amplitude not in (None, 0, 0.0):
+            raise SynthError("effect 'none' takes no amplitude")
+        return 0.0, {}, {}
+    e = EFFECTS[effect]
+    rng = np.random.default_rng([seed, _S_EFFECT])
+    if amplitude is None:
+        A = float(rng.uniform(*e.range))
+        if e.signed and rng.random() < 0.5:
+            A = -A
+    else:
+        if isinstance(amplitude, bool) or not isinstance(amplitude, (int, float, np.floating, np.integer)):
+            raise SynthError(f"amplitude of '{effect}' must be a number, got {amplitude!r}")
+        A = float(amplitude)
+        if not math.isfinite(A):
+            raise SynthError(f"amplitude of '{effect}' must be finite, got {amplitude!r}")
+        if A < 0 and not e.signed:
+            raise SynthError(f"amplitude of '{effect}' must be >= 0 ({e.amplitude}), got {A:g}")
+        if effect == "encoder_scale" and A <= -1:
+            raise SynthError(f"amplitude of 'encoder_scale' must be > -1 (scale 1 + A > 0), got {A:g}")
+    if A == 0.0:
+        return 0.0, {}, {}
+    changes = e.build(A, _ctx(n_circles, ramps), rng)
+    changes = {k: float(v) for k, v in changes.items()}
+    return (A, changes, {}) if e.kind == "model" else (A, {}, changes)
+
+
+def perturbed_coefficients(perturb: float, seed: int, n_circles: int = 100) -> tuple[dict, dict]:
+    """Perturbed ``PERTURBED`` coefficients and their factors (see the module docstring)."""
+    from szdyn.defaults import default_parameters
+
+    p = default_parameters(n_circles)
+    rng = np.random.default_rng([seed, _S_PERTURB])
+    z = np.clip(rng.standard_normal(len(PERTURBED)), -3.0, 3.0)
+    f = {n: float(math.exp(perturb * zi)) for n, zi in zip(PERTURBED, z)}
+    vals = {n: p[n] * f[n] for n in ("k_c", "b_c", "k_imp", "b_imp", "mu_k")}
+    vals["mu_s"] = vals["mu_k"] + (p["mu_s"] - p["mu_k"]) * f["mu_s"]
+    return {n: vals[n] for n in PERTURBED}, f
+
+
+# --------------------------------------------------------------------------- generator
+def _fmt_load(x: float) -> str:
+    return f"{x:g}".replace(".", "p")
+
+
+def _heldout(n_loads: int, n_ramps: int, seed: int) -> list[tuple[int, int]]:
+    """About a third of the (load, ramp) grid, preferring one per load on a diagonal."""
+    n = n_loads * n_ramps
+    if n < 2:
+        return []
+    k = max(1, int(round(n / 3)))
+    rng = np.random.default_rng([seed, _S_SPLIT])
+    off = int(rng.integers(n_ramps))
+    diag = [(i, (i + off) % n_ramps) for i in range(n_loads)]
+    rest = [(i, j) for i in range(n_loads) for j in range(n_ramps) if (i, j) not in diag]
+    rest = [rest[m] for m in rng.permutation(len(rest))]
+    return sorted((diag + rest)[:min(k, n - 1)])
+
+
+def _say(verbose, msg):
+    if verbose:
+        print(f"synth: {msg}", file=sys.stderr, flush=True)
+
+
+def synthesize(out_dir, effect: str = "none", amplitude=None, seed: int = 0,
+               loads_kg=(0.5, 1.0, 1.5), ramps=DEFAULT_RAMPS, perturb: float = 0.1,
+               n_circles: int = 100, *, dt: float = 2e-5, save_dt: float = 1e-4,
+               sensor=None, torque_constant=None, verbose: bool = True) -> dict:
+    """Write synthetic recordings, ``manifest.toml`` and ``truth.json`` to ``out_dir``.
+
+    Parameters
+    ----------
+    out_dir : str or Path
+        Created if missing; existing files of the same names are replaced (atomically).
+    effect : str
+        An id of :data:`EFFECTS` or ``"none"``.
+    amplitude : float, optional
+        Effect amplitude (meaning per effect, see the module table); default: drawn from the
+        realistic range with ``seed``. 0 switches the effect off.
+    seed : int
+        Seeds everything (perturbation, effect draws, split, sensor noise).
+    loads_kg : sequence of float
+        Loads (kg, > 0), each sets ``m_b``.
+    ramps : sequence of RampSpec or (name, a, t_ramp, t_hold)
+        Wheel-speed profiles; default :data:`DEFAULT_RAMPS`.
+    perturb : float
+        Lognormal sigma of the coefficient perturbation (>= 0; 0 = thesis coefficients).
+    n_circles : int
+        ``N_c`` of the truth model (also written to the manifest).
+    dt, save_dt : float
+        RK4 step and truth sampling (s); ``save_dt`` should be well below the logger period.
+    sensor : SensorModel, optional
+        Base sensor settings (default :class:`~szdyn.sensors.SensorModel` defaults).
+    torque_constant : float, optional
+        If given (N m/A), a ``current`` column is logged.
+    verbose : bool
+        Progress on stderr.
+
+    Returns
+    -------
+    dict
+        The content written to ``truth.json``.
+
+    Raises
+    ------
+    SynthError
+        For bad arguments (unknown effect with a suggestion, bad amplitude/loads/ramps).
+    szdyn.errors.SimulationError
+        If the truth integration fails (try a smaller ``dt``).
+    """
+    from szdyn.defaults import default_parameters
+    from szdyn.sensors import SensorModel, apply_sensor, write_recording
+    from szdyn.simulate import simulate
+
+    check_effect(effect)
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise SynthError(f"seed must be a non-negative integer, got {seed!r}")
+    seed = int(seed)
+    if isinstance(n_circles, bool) or not isinstance(n_circles, (int, np.integer)) or n_circles < 1:
+        raise SynthError(f"n_circles must be a positive integer, got {n_circles!r}")
+    n_circles = int(n_circles)
+    loads = [float(x) for x in loads_kg]
+    if not loads or not all(math.isfinite(x) and x > 0 for x in loads):
+        raise SynthError(f"loads must be positive numbers (kg), got {list(loads_kg)!r}")
+    if len(set(loads)) != len(loads):
+        raise SynthError(f"loads must be distinct, got {loads!r}")
+    ramps = tuple(r if isinstance(r, RampSpec) else RampSpec(*r) for r in ramps)
+    if not ramps or len({r.name for r in ramps}) != len(ramps):
+        raise SynthError("ramps must be a non-empty sequence with distinct names")
+    for r in ramps:
+        if not (math.isfinite(r.a) and r.t_ramp > 0 and r.t_hold >= 0):
+            raise SynthError(f"ramp '{r.name}': need finite a, t_ramp > 0, t_hold >= 0")
+    if not (math.isfinite(perturb) and perturb >= 0):
+        raise SynthError(f"perturb must be >= 0, got {perturb!r}")
+    if not (dt > 0 and save_dt >= dt):
+        raise SynthError(f"need 0 < dt <= save_dt, got dt={dt!r}, save_dt={save_dt!r}")
+
+    A, model_changes, sensor_changes = effect_changes(effect, amplitude, seed=seed,
+                                                      n_circles=n_circles, ramps=ramps)
+    if effect != "none" and amplitude is not None and A != 0:
+        lo, hi = EFFECTS[effect].range
+        if not lo <= abs(A) <= hi:
+            _say(verbose, f"note: amplitude {A:g} of '{effect}' is outside its realistic range "
+                          f"{lo:g}-{hi:g} ({EFFECTS[effect].amplitude})")
+    coeffs, factors = perturbed_coefficients(perturb, seed, n_circles)
+    base = default_parameters(n_circles).replace(**coeffs, **model_changes)
+    sensor = SensorModel() if sensor is None else sensor
+    if torque_constant is not None:
+        from dataclasses import replace as dc_replace
+        sensor = dc_replace(sensor, torque_constant=float(torque_constant))
+    if sensor_changes:
+        sensor = _with_fields(sensor, sensor_changes)
+    if save_dt > sensor.sample_period / 4:
+        raise SynthError(f"save_dt {save_dt:g} s must be <= a quarter of the logger period "
+                         f"{sensor.sample_period:g} s")
+
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    held = set(_heldout(len(loads), len(ramps), seed))
+    compliant = base["drive_mode"] == 2
+    _say(verbose, f"effect {effect} (amplitude {A:g}), seed {seed}, N_c {n_circles}, "
+                  f"{len(loads)} loads x {len(ramps)} ramps, rk4 dt {dt:g} s -> {out}")
+    recs = []
+    n_tot = len(loads) * len(ramps)
+    wall0 = time.perf_counter()
+    for i, load in enumerate(loads):
+        params = base.replace(m_b=load)
+        for j, ramp in enumerate(ramps):
+            k = i * len(ramps) + j
+            fname = f"load{_fmt_load(load)}kg_{ramp.name}.csv"
+            t0 = time.perf_counter()
+            drive = ramp.drive()
+            try:
+                run = simulate(params, drive, ramp.t_end, method="rk4", dt=dt, save_dt=save_dt)
+            except SimulationError as exc:
+                raise SimulationError(f"truth of {fname} failed: {exc} (try a smaller dt than "
+                                      f"{dt:g} s)", t=exc.t, variable=exc.variable) from exc
+            o = run.outputs
+            x = run.trajectory.x
+            n = n_circles + 2
+            w_max = abs(ramp.omega_hold)
+            if compliant and not np.abs(x[:, n]).max() <= 10 * w_max + 10:
+                raise SimulationError(
+                    f"truth of {fname} is unphysical: the wheel behind the compliant drive reaches "
+                    f"{np.abs(x[:, n]).max():.3g} rad/s for a motor at {w_max:.3g} rad/s "
+                    f"(k_drive {params['k_drive']:.3g} N m/rad, c_drive {params['c_drive']:.3g} "
+                    f"N m s/rad); check drive_mode 2 in the model", t=None, variable="u_w")
+            if not np.abs(o["u_b"]).max() <= 10 * w_max + 10:
+                raise SimulationError(f"truth of {fname} is unphysical: band speed reaches "
+                                      f"{np.abs(o['u_b']).max():.3g} rad/s (try a smaller dt)",
+                                      t=None, variable="u_b")
+            if compliant:   # motor-side encoder: the prescribed motor angle
+                q_m, u_m, _ = drive.evaluate(o["t"], angle0=float(x[0, 0]))
+                q_enc = q_m
+                torque = run.params["k_drive"] * (q_m - x[:, 0]) + run.params["c_drive"] * (u_m - x[:, n])
+            else:
+                q_enc = o["q_w"]
+                acc = drive.evaluate(o["t"])[2]
+                torque = run.params["I_W"] * acc - o["wheel_reaction_torque"]
+            cond = {"load_kg": load, "n_circles": n_circles}
+            rec = apply_sensor(o["t"], q_enc, o["q_b"], sensor, np.random.default_rng([seed, _S_SENSOR + k]),
+                               omega_ref=lambda tt, d=drive: d.evaluate(tt)[1], motor_torque=torque,
+                               name=fname, conditions=cond)
+            write_recording(out / fname, rec)
+            slip = (o["q_w"][-1] - o["q_b"][-1]) / o["q_w"][-1] if o["q_w"][-1] != 0 else 0.0
+            recs.append({"file": fname, "load_kg": load, "ramp": ramp.name,
+                         "heldout": (i, j) in held, "rows": int(rec.t.size),
+                         "dropped_rows": rec.meta["n_dropped"],
+                         "truth_final": {"q_w": float(o["q_w"][-1]), "q_b": float(o["q_b"][-1]),
+                                         "u_b": float(o["u_b"][-1]), "slip_fraction": float(slip)}})
+            _say(verbose, f"[{k + 1}/{n_tot}] {fname}: {ramp.t_end:g} s simulated in "
+                          f"{time.perf_counter() - t0:.1f} s, {rec.t.size} rows, "
+                          f"band {o['q_b'][-1]:.2f} rad vs wheel {o['q_w'][-1]:.2f} rad")
+            del run, o, x
+
+    lines = ["# Synthetic Spiral Zipper recordings (python -m szdyn.run synth).",
+             "# truth.json beside this file is the hidden answer for scoring only;",
+             "# a diagnosis must not read it.", ""]
+    heldnames = [r["file"] for r in recs if r["heldout"]]
+    if heldnames:
+        lines += ["[split]", "heldout = [" + ", ".join(json.dumps(h) for h in heldnames) + "]", ""]
+    for r in recs:
+        lines += ["[[recording]]", f"file = {json.dumps(r['file'])}", f"load_kg = {r['load_kg']!r}",
+                  f"n_circles = {n_circles}", f"note = {json.dumps('ramp ' + r['ramp'])}", ""]
+    atomic_write_text(out / "manifest.toml", "\n".join(lines))
+
+    nominal = default_parameters(n_circles)
+    truth = {
+        "_note": "hidden answer for scoring only; the diagnosis must not read this file",
+        "generator": "szdyn.synth",
+        "effect": effect,
+        "amplitude": A,
+        "amplitude_meaning": None if effect == "none" else EFFECTS[effect].amplitude,
+        "amplitude_range": None if effect == "none" else list(EFFECTS[effect].range),
+        "amplitude_drawn": amplitude is None and effect != "none",
+        "effect_parameters": model_changes,
+        "effect_sensor": sensor_changes,
+        "seed": seed,
+        "perturb": perturb,
+        "perturbed": {n: {"value": coeffs[n], "nominal": nominal[n], "factor": factors[n]}
+                      for n in PERTURBED},
+        "truth_parameters": base.to_dict(),
+        "n_circles": n_circles,
+        "integrator": {"method": "rk4", "dt": dt, "save_dt": save_dt},
+        "sensor": sensor.to_dict(),
+        "theta_w_encoder": "motor side (equals the wheel unless drive_compliance)",
+        "loads_kg": loads,
+        "ramps": [r.to_dict() for r in ramps],
+        "reference": {"load_kg": REF_LOAD_KG, "speed_rad_s": REF_SPEED,
+                      **{k: v for k, v in _ctx(n_circles, ramps).items() if k != "omega_ref"}},
+        "recordings": recs,
+    }
+    write_json(out / "truth.json", truth)
+    _say(verbose, f"wrote {len(recs)} recordings, manifest.toml, truth.json in "
+                  f"{time.perf_counter() - wall0:.1f} s")
+    return truth
+
+
+def _with_fields(sensor, changes):
+    from dataclasses import replace as dc_replace
+
+    return dc_replace(sensor, **changes)
+
+
+# --------------------------------------------------------------------------- CLI
+class _Parser(argparse.ArgumentParser):
+    def error(self, message):
+        raise SynthError(f"synth: {message}")
+
+
+def _loads(text: str):
+    try:
+        vals = [float(x) for x in text.split(",") if x.strip()]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected comma-separated numbers (kg), got {text!r}") from None
+    if not vals or not all(math.isfinite(v) and v > 0 for v in vals):
+        raise argparse.ArgumentTypeError(f"loads must be positive numbers (kg), got {text!r}")
+    return vals
+
+
+def _build_parser() -> argparse.ArgumentParser:
+    ap = _Parser(prog="python -m szdyn.run synth",
+                 description="Write synthetic recordings (CSV + manifest.toml + truth.json) from a "
+                             "perturbed truth model with one concealed effect.")
+    ap.add_argument("--out", type=Path, required=True, help="output directory")
+    ap.add_argument("--effect", default="none", help=f"concealed effect: {', '.join(EFFECT_IDS)}")
+    ap.add_argument("--amplitude", type=float, help="effect amplitude (default: drawn from its realistic range)")
+    ap.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    ap.add_argument("--loads", type=_loads, help="loads in kg, comma-separated (default 0.5,1,1.5)")
+    ap.add_argument("--n-circles", type=int, help="N_c of the truth model (default 100; 16 with --quick)")
+    ap.add_argument("--perturb", type=float, default=0.1, help="lognormal sigma of the coefficient perturbation (default 0.1)")
+    ap.add_argument("--dt", type=float, default=2e-5, help="RK4 step of the truth (s, default 2e-5)")
+    ap.add_argument("--current", type=float, metavar="KT", help="also log motor current with torque constant KT (N m/A)")
+    ap.add_argument("--quick", action="store_true", help="N_c 16 and two 0.5 s ramps (for tests)")
+    ap.add_argument("--list-effects", action="store_true", help="print the effect library and exit")
+    ap.add_argument("--quiet", action="store_true", help="no progress on stderr")
+    return ap
+
+
+def synth_command(argv) -> int:
+    """``python -m szdyn.run synth ...``; returns the exit code (mistakes raise SynthError)."""
+    argv = list(argv)
+    if "--list-effects" in argv:
+        for e in EFFECTS.values():
+            print(f"{e.id:20s} {e.kind:6s} A = {e.amplitude}; range {'+-' if e.signed else ''}"
+                  f"{e.range[0]:g}-{e.range[1]:g}; {e.doc}")
+        return 0
+    args = _build_parser().parse_args(argv)
+    check_effect(args.effect)
+    if args.seed < 0:
+        raise SynthError(f"synth: --seed must be >= 0, got {args.seed}")
+    if args.n_circles is not None and args.n_circles < 1:
+        raise SynthError(f"synth: --n-circles must be a positive integer, got {args.n_circles}")
+    if args.amplitude is not None and not math.isfinite(args.amplitude):
+        raise SynthError(f"synth: --amplitude must be finite, got {args.amplitude}")
+    if not (math.isfinite(args.dt) and args.dt > 0):
+        raise SynthError(f"synth: --dt must be > 0, got {args.dt}")
+    if args.current is not None and not (math.isfinite(args.current) and args.current > 0):
+        raise SynthError(f"synth: --current must be > 0 (N m/A), got {args.current}")
+    kw = {}
+    if args.quick:
+        kw.update(ramps=QUICK_RAMPS, n_circles=QUICK_N_CIRCLES)
+    if args.n_circles is not None:
+        kw["n_circles"] = args.n_circles
+    if args.loads is not None:
+        kw["loads_kg"] = tuple(args.loads)
+    synthesize(args.out, effect=args.effect, amplitude=args.amplitude, seed=args.seed,
+               perturb=args.perturb, dt=args.dt, save_dt=max(1e-4, args.dt),
+               torque_constant=args.current, verbose=not args.quiet, **kw)
+    return 0
+
+
+if __name__ == "__main__":  # pragma: no cover
+    try:
+        sys.exit(synth_command(sys.argv[1:]))
+    except UserInputError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        sys.exit(2)

@@ -1,0 +1,198 @@
+"""szdyn.synth: synthetic recordings from a perturbed truth model with one concealed effect.
+
+Quick settings only (N_c 16, two 0.5 s ramps, few loads): these tests check the plumbing
+(files, manifest, determinism, the effect switches), not the physics of the effects.
+"""
+from __future__ import annotations
+
+import json
+import math
+
+import pytest
+
+from szdyn.errors import UserInputError
+from szdyn.manifest import read_manifest
+from szdyn.recordings import read_recording
+from szdyn.synth import (EFFECT_IDS, EFFECTS, PERTURBED, QUICK_N_CIRCLES, QUICK_RAMPS, SynthError,
+                         effect_changes, perturbed_coefficients, synth_command, synthesize)
+
+EFFECT_PARAMS = ("c_visc", "mu_st", "v_st", "fric_asym", "tau_lift", "a_rev", "phi_rev", "a_tooth",
+                 "phi_tooth", "k_drift", "mu_t", "k_drive", "c_drive", "drive_mode")
+QUICK = dict(ramps=QUICK_RAMPS, n_circles=QUICK_N_CIRCLES, verbose=False)
+
+
+def _files(d):
+    return {p.name: p.read_bytes() for p in sorted(d.iterdir()) if p.is_file()}
+
+
+@pytest.fixture(scope="module")
+def none_dir(tmp_path_factory):
+    d = tmp_path_factory.mktemp("none")
+    synthesize(d, "none", seed=5, loads_kg=(0.5, 1.0, 1.5), **QUICK)
+    return d
+
+
+def test_files_and_manifest_are_readable(none_dir):
+    m = read_manifest(none_dir / "manifest.toml")
+    assert len(m.entries) == 3 * len(QUICK_RAMPS)
+    assert 1 <= len(m.heldout) <= len(m.entries) - 1
+    assert abs(len(m.heldout) - len(m.entries) / 3) <= 1
+    loads = sorted({e.conditions["load_kg"] for e in m.entries})
+    assert loads == [0.5, 1.0, 1.5]
+    for e in m.entries:
+        assert e.conditions["n_circles"] == QUICK_N_CIRCLES
+        rec = e.read()
+        assert rec.t.size > 100 and rec.omega_ref is not None
+        assert (rec.omega_ref < 0).any() or (rec.omega_ref > 0).any()
+        assert m.parameters(e)["m_b"] == e.conditions["load_kg"]
+        rec2 = read_recording(e.file)
+        assert rec2.t.size == rec.t.size
+    # a negative ramp is part of the set (friction_asymmetry must be observable)
+    assert any(r.a < 0 for r in QUICK_RAMPS)
+    truth = json.loads((none_dir / "truth.json").read_text())
+    assert truth["effect"] == "none" and truth["integrator"]["method"] == "rk4"
+    assert "must not read" in truth["_note"]
+    assert "must not read" in (none_dir / "manifest.toml").read_text()
+
+
+def test_none_has_no_effect_parameters(none_dir):
+    truth = json.loads((none_dir / "truth.json").read_text())
+    assert truth["effect_parameters"] == {} and truth["effect_sensor"] == {}
+    from szdyn.defaults import default_values
+
+    d = default_values()
+    vals = truth["truth_parameters"]["values"]
+    for name in EFFECT_PARAMS:
+        assert vals[name] == d[name], name
+    assert truth["sensor"]["encoder_scale_b"] == 1.0 and truth["sensor"]["encoder_delay_b"] == 0.0
+    # only the perturbed coefficients differ from the defaults (m_b varies per recording)
+    changed = {n for n in vals if vals[n] != d[n]}
+    assert changed <= set(PERTURBED)
+
+
+def test_deterministic_by_seed(tmp_path, none_dir):
+    a = tmp_path / "a"
+    synthesize(a, "none", seed=5, loads_kg=(0.5, 1.0, 1.5), **QUICK)
+    assert _files(a) == _files(none_dir)
+    b = tmp_path / "b"
+    synthesize(b, "none", seed=6, loads_kg=(0.5, 1.0, 1.5), **QUICK)
+    fa, fb = _files(a), _files(b)
+    assert fa.keys() == fb.keys()
+    assert any(fa[k] != fb[k] for k in fa if k.endswith(".csv"))
+
+
+@pytest.mark.parametrize("effect", sorted(EFFECTS))
+def test_each_effect_sets_what_it_documents(effect):
+    e = EFFECTS[effect]
+    A, model, sensor = effect_changes(effect, seed=3, n_circles=QUICK_N_CIRCLES, ramps=QUICK_RAMPS)
+    lo, hi = e.range
+    assert lo <= abs(A) <= hi
+    if not e.signed:
+        assert A > 0
+    changes = model if e.kind == "model" else sensor
+    assert changes and not (model and sensor)
+    expect = {
+        "slider_viscous": ("c_visc",), "slider_stribeck": ("mu_st", "v_st"),
+        "friction_asymmetry": ("fric_asym",), "load_lift": ("tau_lift",),
+        "position_periodic": ("a_rev", "phi_rev"), "friction_drift": ("k_drift",),
+        "wheel_band_traction": ("mu_t",), "drive_compliance": ("drive_mode", "k_drive"),
+        "encoder_scale": ("encoder_scale_b",), "encoder_delay": ("encoder_delay_b",),
+    }[effect]
+    assert set(changes) == set(expect)
+    # the documented mapping for a given amplitude
+    from szdyn.defaults import default_parameters
+
+    p = default_parameters(QUICK_N_CIRCLES)
+    tau_k = p["R_bo"] * p["g"] * 1.0 * p["mu_k"]
+    a = 0.5 * (lo + hi)
+    _, m, s = effect_changes(effect, a, seed=3, n_circles=QUICK_N_CIRCLES, ramps=QUICK_RAMPS)
+    got = {**m, **s}
+    t_max = max(r.t_end for r in QUICK_RAMPS)
+    check = {
+        "slider_viscous": ("c_visc", a * tau_k / math.pi),
+        "slider_stribeck": ("mu_st", a * p["mu_k"]),
+        "friction_asymmetry": ("fric_asym", a),
+        "load_lift": ("tau_lift", a * p["g"] * p.geometry.pitch / (2 * math.pi)),
+        "position_periodic": ("a_rev", a * tau_k),
+        "friction_drift": ("k_drift", a / t_max),
+        "wheel_band_traction": ("mu_t", a),
+        "drive_compliance": ("k_drive", tau_k / math.radians(a)),
+        "encoder_scale": ("encoder_scale_b", 1 + a),
+        "encoder_delay": ("encoder_delay_b", a),
+    }[effect]
+    assert got[check[0]] == pytest.approx(check[1], rel=1e-12)
+    # the truth parameters accept the changes
+    p.replace(**m)
+
+
+def test_drawn_amplitude_depends_on_seed_only():
+    a1 = effect_changes("slider_viscous", seed=1)
+    assert effect_changes("slider_viscous", seed=1) == a1
+    assert effect_changes("slider_viscous", seed=2)[0] != a1[0]
+
+
+@pytest.mark.parametrize("effect", ["slider_viscous", "position_periodic", "encoder_delay"])
+def test_amplitude_zero_equals_none(tmp_path, effect):
+    kw = dict(seed=11, loads_kg=(1.0,), **QUICK)
+    synthesize(tmp_path / "n", "none", **kw)
+    synthesize(tmp_path / "z", effect, amplitude=0.0, **kw)
+    fn, fz = _files(tmp_path / "n"), _files(tmp_path / "z")
+    csvs = [k for k in fn if k.endswith(".csv")]
+    assert csvs and all(fn[k] == fz[k] for k in csvs)
+    assert fn["manifest.toml"] == fz["manifest.toml"]
+    for effect2 in EFFECTS:
+        assert effect_changes(effect2, 0.0)[1:] == ({}, {})
+
+
+def test_nonzero_effect_changes_recordings(tmp_path):
+    kw = dict(seed=11, loads_kg=(1.0,), **QUICK)
+    synthesize(tmp_path / "n", "none", **kw)
+    synthesize(tmp_path / "d", "encoder_delay", amplitude=0.02, **kw)
+    fn, fd = _files(tmp_path / "n"), _files(tmp_path / "d")
+    assert any(fn[k] != fd[k] for k in fn if k.endswith(".csv"))
+    truth = json.loads((tmp_path / "d" / "truth.json").read_text())
+    assert truth["sensor"]["encoder_delay_b"] == 0.02
+
+
+def test_perturbation_keeps_mu_s_above_mu_k():
+    for seed in range(50):
+        c, f = perturbed_coefficients(0.5, seed, 4)
+        assert c["mu_s"] >= c["mu_k"] > 0
+    c0, f0 = perturbed_coefficients(0.0, 0, 4)
+    assert all(v == 1.0 for v in f0.values())
+
+
+def test_unknown_effect_names_it_and_suggests(tmp_path):
+    with pytest.raises(UserInputError) as ei:
+        synth_command(["--out", str(tmp_path), "--effect", "slider_viscos", "--quick"])
+    msg = str(ei.value)
+    assert "'slider_viscos'" in msg and "did you mean 'slider_viscous'" in msg
+    with pytest.raises(SynthError, match="did you mean 'encoder_delay'"):
+        synthesize(tmp_path, "encoder_dealy", **QUICK)
+    assert not any(tmp_path.iterdir())
+
+
+@pytest.mark.parametrize("argv, match", [
+    (["--effect", "none"], "--out"),
+    (["--out", "X", "--loads", "1,-2"], "loads"),
+    (["--out", "X", "--effect", "slider_viscous", "--amplitude", "-0.1"], ">= 0"),
+    (["--out", "X", "--seed", "-1"], "seed"),
+    (["--out", "X", "--bogus"], "unrecognized"),
+])
+def test_cli_mistakes_are_user_errors(tmp_path, argv, match):
+    argv = [str(tmp_path / a) if a == "X" else a for a in argv]
+    with pytest.raises(UserInputError, match=match):
+        synth_command(argv + ["--quick", "--quiet"])
+
+
+def test_cli_quick_run(tmp_path, capsys):
+    assert synth_command(["--out", str(tmp_path), "--quick", "--loads", "1", "--effect",
+                          "friction_asymmetry", "--seed", "2"]) == 0
+    err = capsys.readouterr().err
+    assert "synth:" in err
+    m = read_manifest(tmp_path / "manifest.toml")
+    assert len(m.entries) == len(QUICK_RAMPS)
+    truth = json.loads((tmp_path / "truth.json").read_text())
+    assert truth["effect"] == "friction_asymmetry" and truth["amplitude_drawn"]
+    assert 0.1 <= abs(truth["effect_parameters"]["fric_asym"]) <= 0.3
+    assert set(EFFECT_IDS) == {"none", *EFFECTS}
