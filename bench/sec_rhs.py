@@ -19,6 +19,7 @@ BUDGET_S = 120.0  # largest baseline derivation (+ lambdify) we are willing to w
 def _baseline(nc: int, nr: int):
     import sympy as sm
 
+    from derive.force_laws import tt as t_sym
     from derive.kernels import T_m, full_system
     from derive.symbols import P, PARAM_NAMES
 
@@ -26,7 +27,8 @@ def _baseline(nc: int, nr: int):
     fs = full_system(nc, nr)
     t_derive = time.perf_counter() - t0
     t0 = time.perf_counter()
-    f = sm.lambdify((fs.q, fs.u, [P[n] for n in PARAM_NAMES], T_m), (fs.mass_matrix, fs.forcing),
+    # the model's loads may depend on time (friction_drift): time is an argument of the baseline too
+    f = sm.lambdify((fs.q, fs.u, [P[n] for n in PARAM_NAMES], T_m, t_sym), (fs.mass_matrix, fs.forcing),
                     modules=[{"ImmutableDenseMatrix": np.array}, "math"], cse=True)
     t_lambdify = time.perf_counter() - t0
 
@@ -44,10 +46,10 @@ def _baseline(nc: int, nr: int):
     T = float(sz.drive_eval(drive, T_EVAL)[1])
 
     def evaluate():
-        return f(q, u, p, T)
+        return f(q, u, p, T, T_EVAL)
 
     def evaluate_solve():
-        M, F = f(q, u, p, T)
+        M, F = f(q, u, p, T, T_EVAL)
         return np.linalg.solve(M, F)
 
     with warnings.catch_warnings():
