@@ -109,7 +109,8 @@ def _assemble(t, x, p, q_w, u_w, T_m, m_bi, m_ii, f, c_phi, s_phi, want_energy):
     q_b = x[1]
     u_b = x[n + 1]
     model = int(p[_I_contact_model] + 0.5)
-    tau_b = slider_torque(u_b, p) + band_effects_torque(t, q_b, u_b, p)
+    tau_slider = slider_torque(u_b, p)
+    tau_b = tau_slider + band_effects_torque(t, q_b, u_b, tau_slider, p)
     M_ww, M_bb, F_w, F_b = core_kernel(T_m, tau_b, traction_torque(x, p, u_w), p)
     phi_max = 0.0
     for i in range(nc):

@@ -150,7 +150,7 @@ class TractionLuGre:
         ]
 
 
-tt, q = sm.symbols("t q_b", real=True)
+tt, q, tau_s = sm.symbols("t q_b tau_slider", real=True)
 
 
 class BandEffects:
@@ -158,13 +158,13 @@ class BandEffects:
 
     Each is one named term with its own parameters and is off when they are 0; the sum is the
     extra band torque of the model. ``speed`` is the band speed u_b (rad/s), ``q`` its angle
-    (rad), ``tt`` the time (s).
+    (rad), ``tt`` the time (s), ``slider`` the slider friction torque (N m) that the asymmetry
+    and drift terms scale: an input, so that the slider law is evaluated once per RHS.
     """
 
     name = "band_effects"
 
-    def terms(self, u=speed, qb=q, time=tt) -> dict:
-        slider = SliderFriction().torque(u)
+    def terms(self, u=speed, qb=q, time=tt, slider=tau_s) -> dict:
         sat = sm.Max(-1, sm.Min(1, u / P["gamma"]))  # sign(u) regularised like the slider law
         return {
             "slider_viscous": -P["c_visc"] * u,
@@ -176,13 +176,13 @@ class BandEffects:
             "friction_drift": P["k_drift"] * time * slider,
         }
 
-    def torque(self, u=speed, qb=q, time=tt) -> sm.Expr:
-        return sum(self.terms(u, qb, time).values())
+    def torque(self, u=speed, qb=q, time=tt, slider=tau_s) -> sm.Expr:
+        return sum(self.terms(u, qb, time, slider).values())
 
     def functions(self) -> list[LawFunction]:
-        out = [LawFunction(f"effect_{k}", (tt, q, speed), v, f"Band torque (N m) of candidate effect {k}.")
+        out = [LawFunction(f"effect_{k}", (tt, q, speed, tau_s), v, f"Band torque (N m) of candidate effect {k}.")
                for k, v in self.terms().items()]
-        out.append(LawFunction("band_effects_torque", (tt, q, speed), self.torque(),
+        out.append(LawFunction("band_effects_torque", (tt, q, speed, tau_s), self.torque(),
                                "Sum of the candidate effects' band torques (N m); 0 with their parameters at 0."))
         return out
 

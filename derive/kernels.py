@@ -207,7 +207,7 @@ def full_system(n_circles: int, n_rollers: int, contact_model: int = 0) -> FullS
         me.RigidBody("band", mech.O, mech.B, sm.S.One, (me.inertia(mech.B, 0, 0, P["I_B"]), mech.O)),
     ] + [c.particle for c in circles]
     pair = 0 if contact_model == 0 else traction_torque(contact_model, (P["R_w"] + P["t_r"]) * (u_w - u_b), z_lugre)
-    band_torque = slider.torque(u_b) + BandEffects().torque(u_b, q_b, t_sym)
+    band_torque = slider.torque(u_b) + BandEffects().torque(u_b, q_b, t_sym, slider.torque(u_b))
     loads = core_loads(mech, T_m, band_torque, pair)
     for c in circles:
         loads += arm_loads(c, mech)

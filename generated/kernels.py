@@ -219,7 +219,7 @@ def lugre_force(slip, z, p):
 
 
 @nb.njit(cache=True)
-def effect_slider_viscous(t, q_b, speed, p):
+def effect_slider_viscous(t, q_b, speed, tau_slider, p):
     """Band torque (N m) of candidate effect slider_viscous."""
     c_visc = p[30]
     value = -c_visc*speed
@@ -227,7 +227,7 @@ def effect_slider_viscous(t, q_b, speed, p):
 
 
 @nb.njit(cache=True)
-def effect_slider_stribeck(t, q_b, speed, p):
+def effect_slider_stribeck(t, q_b, speed, tau_slider, p):
     """Band torque (N m) of candidate effect slider_stribeck."""
     R_bo = p[3]
     g = p[19]
@@ -240,23 +240,15 @@ def effect_slider_stribeck(t, q_b, speed, p):
 
 
 @nb.njit(cache=True)
-def effect_friction_asymmetry(t, q_b, speed, p):
+def effect_friction_asymmetry(t, q_b, speed, tau_slider, p):
     """Band torque (N m) of candidate effect friction_asymmetry."""
-    R_bo = p[3]
     fric_asym = p[33]
-    g = p[19]
-    gamma = p[17]
-    m_b = p[18]
-    mu_k = p[16]
-    mu_s = p[15]
-    x0 = abs(speed)
-    x1 = 1/gamma
-    value = -R_bo*fric_asym*g*m_b*((mu_s*x0*x1) if (gamma >= x0) else (mu_s - x1*(-gamma + x0)*(-2*mu_k + 2*mu_s)) if (x0 <= (3.0/2.0)*gamma) else (mu_k))*(0.0 if speed == 0 else math.copysign(1.0, speed))**2
+    value = fric_asym*tau_slider*(0.0 if speed == 0 else math.copysign(1.0, speed))
     return value
 
 
 @nb.njit(cache=True)
-def effect_load_lift(t, q_b, speed, p):
+def effect_load_lift(t, q_b, speed, tau_slider, p):
     """Band torque (N m) of candidate effect load_lift."""
     tau_lift = p[34]
     value = -tau_lift
@@ -264,7 +256,7 @@ def effect_load_lift(t, q_b, speed, p):
 
 
 @nb.njit(cache=True)
-def effect_position_periodic(t, q_b, speed, p):
+def effect_position_periodic(t, q_b, speed, tau_slider, p):
     """Band torque (N m) of candidate effect position_periodic."""
     a_rev = p[35]
     a_tooth = p[37]
@@ -276,23 +268,15 @@ def effect_position_periodic(t, q_b, speed, p):
 
 
 @nb.njit(cache=True)
-def effect_friction_drift(t, q_b, speed, p):
+def effect_friction_drift(t, q_b, speed, tau_slider, p):
     """Band torque (N m) of candidate effect friction_drift."""
-    R_bo = p[3]
-    g = p[19]
-    gamma = p[17]
     k_drift = p[40]
-    m_b = p[18]
-    mu_k = p[16]
-    mu_s = p[15]
-    x0 = abs(speed)
-    x1 = 1/gamma
-    value = -R_bo*g*k_drift*m_b*t*((mu_s*x0*x1) if (gamma >= x0) else (mu_s - x1*(-gamma + x0)*(-2*mu_k + 2*mu_s)) if (x0 <= (3.0/2.0)*gamma) else (mu_k))*(0.0 if speed == 0 else math.copysign(1.0, speed))
+    value = k_drift*t*tau_slider
     return value
 
 
 @nb.njit(cache=True)
-def band_effects_torque(t, q_b, speed, p):
+def band_effects_torque(t, q_b, speed, tau_slider, p):
     """Sum of the candidate effects' band torques (N m); 0 with their parameters at 0."""
     R_bo = p[3]
     a_rev = p[35]
@@ -303,20 +287,13 @@ def band_effects_torque(t, q_b, speed, p):
     gamma = p[17]
     k_drift = p[40]
     m_b = p[18]
-    mu_k = p[16]
-    mu_s = p[15]
     mu_st = p[31]
     n_teeth = p[39]
     phi_rev = p[36]
     phi_tooth = p[38]
     tau_lift = p[34]
     v_st = p[32]
-    x0 = 1/gamma
-    x1 = R_bo*g*m_b
-    x2 = (0.0 if speed == 0 else math.copysign(1.0, speed))
-    x3 = abs(speed)
-    x4 = x1*((mu_s*x0*x3) if (gamma >= x3) else (mu_s - x0*(-gamma + x3)*(-2*mu_k + 2*mu_s)) if (x3 <= (3.0/2.0)*gamma) else (mu_k))
-    value = -a_rev*math.sin(phi_rev + q_b) - a_tooth*math.sin(n_teeth*q_b + phi_tooth) - c_visc*speed - fric_asym*x2**2*x4 - k_drift*t*x2*x4 - mu_st*x1*math.exp(-speed**2/v_st**2)*max(-1, min(1, speed*x0)) - tau_lift
+    value = -R_bo*g*m_b*mu_st*math.exp(-speed**2/v_st**2)*max(-1, min(1, speed/gamma)) - a_rev*math.sin(phi_rev + q_b) - a_tooth*math.sin(n_teeth*q_b + phi_tooth) - c_visc*speed + fric_asym*tau_slider*(0.0 if speed == 0 else math.copysign(1.0, speed)) + k_drift*t*tau_slider - tau_lift
     return value
 
 

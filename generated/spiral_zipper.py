@@ -23,7 +23,7 @@ from .kernels import (circle_energy, circle_kernel, contact_distance_sq, contact
                       lugre_force, lugre_z_dot, slider_torque, traction_coulomb_force,
                       band_effects_torque, traction_tangential_force, drive_compliance_torque)
 
-KERNELS_SHA256 = "690dd3c15c7c2f17e46eb3d63d4bd64aa4e704ad7113b632a567d2c0fc396795"
+KERNELS_SHA256 = "f2b03de6916768d90ad907df0e7cad4600883f2f5211d855772ce1ae3673f6ac"
 
 PARAM_NAMES = (
     "I_W",
@@ -321,7 +321,8 @@ def _assemble(t, x, p, q_w, u_w, T_m, m_bi, m_ii, f, c_phi, s_phi, want_energy):
     q_b = x[1]
     u_b = x[n + 1]
     model = int(p[_I_contact_model] + 0.5)
-    tau_b = slider_torque(u_b, p) + band_effects_torque(t, q_b, u_b, p)
+    tau_slider = slider_torque(u_b, p)
+    tau_b = tau_slider + band_effects_torque(t, q_b, u_b, tau_slider, p)
     M_ww, M_bb, F_w, F_b = core_kernel(T_m, tau_b, traction_torque(x, p, u_w), p)
     phi_max = 0.0
     for i in range(nc):

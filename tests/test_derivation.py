@@ -152,6 +152,8 @@ def _law_argument(name, rng, v):
         return rng.uniform(0, 1e-3)
     if name == "z":
         return rng.uniform(-1e-4, 1e-4)
+    if name == "tau_slider":
+        return rng.uniform(-0.2, 0.2)
     if name == "f_n":
         return rng.uniform(0, 50)
     if name == "slip":

@@ -13,10 +13,7 @@ from szdyn.params import CHOICE, POSINT, ParameterSet, _bounds
 
 @pytest.fixture(scope="module")
 def names():
-    try:
-        return params.param_names()
-    except ImportError as exc:
-        pytest.skip(f"generated module szdyn_generated.spiral_zipper not importable yet: {exc}")
+    return params.param_names()
 
 
 @pytest.fixture(scope="module")
