@@ -3,7 +3,8 @@
 Commands: ``simulate`` (the default: scenario ``thesis-fig10`` on the built-in defaults, one CSV
 per run, a Fig. 10-style PNG, params.json and thesis-fig10.json), ``sweep SPEC.toml`` (parameter
 sweeps, parallel and resumable), ``regime`` (regime map) and ``synth`` (synthetic recordings
-with a concealed effect, for proving the diagnosis). ``COMMAND --help`` for each.
+with a concealed effect, for proving the diagnosis) and ``diagnose MANIFEST.toml`` (calibrate to
+recordings, locate the mismatch, name the missing effect, refit). ``COMMAND --help`` for each.
 """
 from __future__ import annotations
 
@@ -161,8 +162,14 @@ def synth_command(argv) -> int:
     return run_synth_command(argv)
 
 
+def diagnose_command(argv) -> int:
+    from .diagnose.command import diagnose_command as run_diagnose_command
+
+    return run_diagnose_command(argv)
+
+
 COMMANDS = {"simulate": simulate_command, "sweep": sweep_command, "regime": regime_command,
-            "synth": synth_command}
+            "synth": synth_command, "diagnose": diagnose_command}
 
 
 def main(argv=None) -> int:

@@ -1,0 +1,96 @@
+"""``python -m szdyn.run diagnose MANIFEST.toml --out DIR``."""
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+from ..errors import UserInputError
+
+__all__ = ["diagnose_command", "choose_heldout"]
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message):
+        raise UserInputError(f"diagnose: {message}")
+
+
+def _build_parser():
+    from .candidates import CANDIDATES
+
+    ap = _Parser(prog="python -m szdyn.run diagnose",
+                 description="Calibrate the model to recordings, locate the mismatch, name the missing "
+                             "effect from a library, refit and report (report.md, diagnosis.json, PNGs, "
+                             "params.json).")
+    ap.add_argument("manifest", type=Path, help="manifest TOML listing the recordings and their conditions")
+    ap.add_argument("--out", type=Path, required=True, help="output directory")
+    ap.add_argument("--candidates", help="comma-separated effect ids to screen (default: all: "
+                    + ", ".join(CANDIDATES) + ")")
+    ap.add_argument("--shortlist", type=int, default=3, help="candidates refitted nonlinearly (default 3)")
+    ap.add_argument("--max-jac", type=int, default=6, help="Jacobians per nonlinear fit (default 6; calibration twice)")
+    ap.add_argument("--workers", type=int, help="processes for model runs (default: CPU count)")
+    ap.add_argument("--quiet", action="store_true", help="no progress on stderr")
+    return ap
+
+
+def choose_heldout(names) -> tuple:
+    """Held-out recordings when the manifest has no ``[split]``: every third, from the second
+    (1 of 2 or 3, 2 of 4-6, ...); none with a single recording."""
+    names = list(names)
+    if len(names) < 2:
+        return ()
+    return tuple(names[1::3])
+
+
+def diagnose_command(argv) -> int:
+    from dataclasses import replace
+
+    from ..manifest import read_manifest
+    from .candidates import CANDIDATES
+    from .data import prepare
+    from .diagnosis import Diagnosis
+    from .report import write_report
+
+    args = _build_parser().parse_args(argv)
+    if args.shortlist < 1:
+        raise UserInputError(f"diagnose: --shortlist must be >= 1, got {args.shortlist}")
+    if args.max_jac < 1:
+        raise UserInputError(f"diagnose: --max-jac must be >= 1, got {args.max_jac}")
+    if args.workers is not None and args.workers < 1:
+        raise UserInputError(f"diagnose: --workers must be >= 1, got {args.workers}")
+    cands = None
+    if args.candidates:
+        cands = [c.strip() for c in args.candidates.split(",") if c.strip()]
+        bad = [c for c in cands if c not in CANDIDATES]
+        if bad:
+            raise UserInputError(f"diagnose: unknown candidate(s) {bad}; known: {', '.join(CANDIDATES)}")
+    t_start = time.perf_counter()
+
+    def log(msg):
+        if not args.quiet:
+            print(f"diagnose [{time.perf_counter() - t_start:6.1f} s] {msg}", file=sys.stderr, flush=True)
+
+    runs = [0]
+
+    def progress(k):
+        runs[0] += k
+        if not args.quiet and runs[0] % 25 == 0:
+            log(f"{runs[0]} model runs")
+
+    man = read_manifest(args.manifest)
+    if not man.heldout:
+        man = replace(man, heldout=choose_heldout(e.name for e in man.entries))
+        if man.heldout:
+            log(f"no [split] in the manifest: holding out {', '.join(man.heldout)}")
+    recs = prepare(man)
+    log(f"{len(recs)} recording(s): {sum(r.role == 'fit' for r in recs)} fit, "
+        f"{sum(r.role != 'fit' for r in recs)} held out")
+    d = Diagnosis(cands, shortlist=args.shortlist, max_jac=args.max_jac, workers=args.workers,
+                  log=log, progress=progress).fit(recs)
+    js = write_report(d, args.out)
+    sel = ", ".join(js["selected"]) or d.verdict_
+    log(f"done: {sel}; held-out RMSE {js['fit']['before']['heldout_rmse']:.4g} -> "
+        f"{js['fit']['after']['heldout_rmse']:.4g} rad/s; wrote {args.out}/report.md")
+    print(sel)
+    return 0

@@ -1,0 +1,118 @@
+"""Recordings prepared for the diagnosis: drive, feature grid and measured feature.
+
+What is compared
+----------------
+The impact model's fine-scale bumps are not reproducible sample by sample, so the diagnosis
+compares the **smoothed band speed** ``omega_b`` (Savitzky-Golay derivative of ``theta_b``,
+degree 2, window ``window_s`` = 0.1 s, which averages the impact bumps and keeps ramps of
+~1 s), sampled every ``feature_dt`` = 0.05 s. Both sides share the measured wheel motion (the
+model is driven by it), so this is the smoothed relative speed ``omega_w - omega_b`` up to the
+common term ``omega_w``. Slip per revolution and stroke are reported before and after
+(:func:`szdyn.compare.compare`), not fitted: they integrate the same signal.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..drive import Sampled
+from ..params import ParameterSet
+from ..recordings import Recording, speeds
+
+__all__ = ["Prepared", "prepare", "WINDOW_S", "FEATURE_DT", "SIM_DT"]
+
+#: smoothing window of the compared speeds (s)
+WINDOW_S = 0.1
+#: feature sampling step (s): half the window, so neighbouring samples overlap by half
+FEATURE_DT = 0.05
+#: output step of the model runs (s) on which the model's feature is computed
+SIM_DT = 1e-3
+
+
+@dataclass
+class Prepared:
+    """One recording, ready for repeated comparison with the model.
+
+    Attributes
+    ----------
+    name : str
+    role : {"fit", "heldout"}
+    params : ParameterSet
+        Model parameters of this recording (defaults + manifest ``[model]`` + its conditions).
+    drive : Sampled
+        Measured wheel (or motor) speed, rad/s, on the recording's uniform grid.
+    t0, t1 : float
+        Time span simulated (s).
+    t_feat : ndarray, shape (m,)
+        Feature grid (s).
+    y : ndarray, shape (m,)
+        Measured smoothed band speed at ``t_feat`` (rad/s).
+    omega_w : ndarray, shape (m,)
+        Measured smoothed wheel speed at ``t_feat`` (rad/s).
+    theta_b : ndarray, shape (m,)
+        Measured band angle at ``t_feat`` (rad).
+    rec : Recording
+    """
+
+    name: str
+    role: str
+    params: ParameterSet
+    drive: Sampled
+    t0: float
+    t1: float
+    t_feat: np.ndarray
+    y: np.ndarray
+    omega_w: np.ndarray
+    theta_b: np.ndarray
+    rec: Recording
+    conditions: dict = field(default_factory=dict)
+
+    @property
+    def load_kg(self) -> float:
+        return float(self.conditions.get("load_kg", math.nan))
+
+
+def feature_grid(t0: float, t1: float, window_s: float = WINDOW_S, dt: float = FEATURE_DT):
+    """Feature instants: every ``dt`` from half a window after the start to half before the end."""
+    a, b = t0 + 0.5 * window_s, t1 - 0.5 * window_s
+    n = int(math.floor((b - a) / dt + 1e-9)) + 1
+    return a + dt * np.arange(max(n, 0))
+
+
+def prepare_one(rec: Recording, params: ParameterSet, role: str, *, window_s: float = WINDOW_S,
+                feature_dt: float = FEATURE_DT) -> Prepared:
+    """Prepare one recording (see :class:`Prepared`)."""
+    t, ww, wb = speeds(rec, window_s)
+    drive = Sampled(t=t, omega=ww)
+    t0, t1 = float(t[0]), float(t[-1])
+    tf = feature_grid(t0, t1, window_s, feature_dt)
+    return Prepared(name=rec.name, role=role, params=params, drive=drive, t0=t0, t1=t1,
+                    t_feat=tf, y=np.interp(tf, t, wb), omega_w=np.interp(tf, t, ww),
+                    theta_b=np.interp(tf, rec.t, rec.theta_b - rec.theta_b[0]), rec=rec,
+                    conditions=dict(rec.conditions))
+
+
+def prepare(manifest, *, window_s: float = WINDOW_S, feature_dt: float = FEATURE_DT,
+            base: ParameterSet | None = None) -> list:
+    """Read and prepare every recording of a manifest (fit ones first, then held-out).
+
+    Parameters
+    ----------
+    manifest : szdyn.manifest.Manifest
+    base : ParameterSet, optional
+        Starting parameters (default: built-in defaults); manifest overrides apply on top.
+
+    Returns
+    -------
+    list of Prepared
+    """
+    out = []
+    held = set(manifest.heldout)
+    for e in manifest.entries:
+        rec = e.read()
+        out.append(prepare_one(rec, manifest.parameters(e, base), "heldout" if e.name in held else "fit",
+                               window_s=window_s, feature_dt=feature_dt))
+    out.sort(key=lambda p: p.role != "fit")
+    return out

@@ -1,0 +1,250 @@
+"""Fitting one hypothesis (base coefficients, optionally + one candidate) to recordings.
+
+The fit is ``scipy.optimize.least_squares`` (trust-region reflective, bounds) on the residual
+``measured - model`` smoothed band speed (rad/s) of the fit recordings, with a forward-difference
+Jacobian whose columns run as one parallel batch (:class:`~szdyn.diagnose.engine.FeatureModel`).
+
+Uncertainty: ``cov = s^2 (J^T J)^-1 * c`` at the optimum, ``s^2 = RSS / (n - p)``, inflated by
+``c = WINDOW_S / FEATURE_DT`` (= 2) because neighbouring feature samples share half their
+smoothing window and are not independent. Standard deviations of log-fitted coefficients are
+converted to their own units by the delta method (``sigma_value = value * sigma_log``).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from .candidates import CALIBRATED, Candidate, FitParam
+from .data import FEATURE_DT, WINDOW_S
+from .engine import FeatureModel
+
+__all__ = ["Hypothesis", "FitResult", "fit_hypothesis", "jacobian", "CORRELATION_INFLATION"]
+
+CORRELATION_INFLATION = WINDOW_S / FEATURE_DT
+
+
+class Hypothesis:
+    """Maps fit coordinates ``x`` to model and sensor changes.
+
+    Parameters
+    ----------
+    start : dict
+        Base coefficient values to start from (``k_c, b_c, k_imp, mu_s, mu_k``, SI).
+    candidate : Candidate, optional
+        The effect switched on (None: the base model).
+
+    Notes
+    -----
+    Base coefficients are ``x_j = log(value_j / start_j)`` (``mu_s`` through ``dmu_s = mu_s -
+    mu_k``); candidate parameters are in their own units, 0 = off unless ``FitParam.start``.
+    """
+
+    def __init__(self, start: dict, candidate: Candidate | None = None):
+        self.start = dict(start)
+        self.candidate = candidate
+        self._start_log = {"k_c": start["k_c"], "b_c": start["b_c"], "k_imp": start["k_imp"],
+                           "mu_k": start["mu_k"], "dmu_s": start["mu_s"] - start["mu_k"]}
+        self.params: tuple[FitParam, ...] = CALIBRATED + (candidate.params if candidate else ())
+        self.n_base = len(CALIBRATED)
+
+    @property
+    def id(self) -> str:
+        return self.candidate.id if self.candidate else "none"
+
+    @property
+    def names(self) -> tuple:
+        return tuple(p.name for p in self.params)
+
+    def x_start(self) -> np.ndarray:
+        x = [0.0] * self.n_base
+        x += [(p.start if p.start is not None else 0.0) for p in self.params[self.n_base:]]
+        return np.array(x, dtype=float)
+
+    def bounds(self):
+        lo = [math.log(p.lo) if p.log else p.lo for p in self.params]
+        hi = [math.log(p.hi) if p.log else p.hi for p in self.params]
+        return np.array(lo), np.array(hi)
+
+    def steps(self) -> np.ndarray:
+        """Finite-difference steps / scales in fit coordinates."""
+        return np.array([p.probe for p in self.params])
+
+    def values(self, x) -> dict:
+        """Named values in their own units: base coefficients (incl. ``mu_s``) + candidate's."""
+        v = {}
+        for p, xi in zip(self.params[:self.n_base], x):
+            v[p.name] = self._start_log[p.name] * math.exp(float(xi))
+        v["mu_s"] = v["mu_k"] + v.pop("dmu_s")
+        for p, xi in zip(self.params[self.n_base:], x[self.n_base:]):
+            v[p.name] = float(xi)
+        return v
+
+    def point(self, x) -> tuple[dict, dict]:
+        """``(model_changes, sensor_changes)`` at ``x``."""
+        v = self.values(x)
+        mc = {k: v[k] for k in ("k_c", "b_c", "k_imp", "mu_s", "mu_k")}
+        sc = {}
+        if self.candidate is not None:
+            cv = {p.name: v[p.name] for p in self.candidate.params}
+            m2, s2 = self.candidate.apply(cv)
+            mc.update(self.candidate.fixed)
+            mc.update(m2)
+            sc.update(s2)
+        return mc, sc
+
+    def candidate_values(self, x) -> dict:
+        if self.candidate is None:
+            return {}
+        v = self.values(x)
+        return {p.name: v[p.name] for p in self.candidate.params}
+
+
+def jacobian(model: FeatureModel, hyp: Hypothesis, x, which, f0=None, cols=None):
+    """Forward-difference Jacobian of the *model speed* (not the residual), one parallel batch.
+
+    Returns
+    -------
+    J : ndarray, shape (n, len(cols))
+        ``d model_speed / d x_j`` (rad/s per fit unit).
+    f0 : ndarray, shape (n,)
+        Residual at ``x``.
+    """
+    x = np.asarray(x, dtype=float)
+    cols = range(len(x)) if cols is None else cols
+    lo, hi = hyp.bounds()
+    h = hyp.steps()
+    pts, hs = [hyp.point(x)], []
+    for j in cols:
+        xj = x.copy()
+        step = h[j] if x[j] + h[j] <= hi[j] else -h[j]   # stay inside the bounds
+        xj[j] += step
+        hs.append(step)
+        pts.append(hyp.point(xj))
+    R = model.residuals(pts, which)
+    f0 = R[0]
+    # residual = y - speed: d speed / dx = -(d residual / dx)
+    J = np.column_stack([-(R[k + 1] - f0) / hs[k] for k in range(len(hs))]) if hs else np.zeros((f0.size, 0))
+    return J, f0
+
+
+@dataclass
+class FitResult:
+    """Result of :func:`fit_hypothesis`.
+
+    Attributes
+    ----------
+    hypothesis : Hypothesis
+    x : ndarray, shape (p,)
+        Optimum in fit coordinates.
+    values : dict
+        Named values (own units).
+    std : dict
+        Standard deviations (own units; NaN where ``J^T J`` is singular).
+    corr : ndarray, shape (p, p)
+        Correlation matrix of the fit coordinates.
+    rss_fit : float
+        Residual sum of squares on the fit recordings ((rad/s)^2).
+    n_fit : int
+        Feature samples in the fit recordings.
+    rmse_fit : float
+        rad/s.
+    nfev : int
+        Residual evaluations.
+    J : ndarray
+        Jacobian of the model speed at the optimum (fit recordings).
+    """
+
+    hypothesis: Hypothesis
+    x: np.ndarray
+    values: dict
+    std: dict
+    corr: np.ndarray
+    rss_fit: float
+    n_fit: int
+    rmse_fit: float
+    nfev: int
+    J: np.ndarray
+    status: str = ""
+    extra: dict = field(default_factory=dict)
+
+
+def _uncertainty(hyp, x, J, rss, n):
+    p = J.shape[1]
+    s2 = rss / max(n - p, 1)
+    JTJ = J.T @ J
+    try:
+        cov = np.linalg.pinv(JTJ, rcond=1e-10) * s2 * CORRELATION_INFLATION
+    except np.linalg.LinAlgError:
+        cov = np.full((p, p), np.nan)
+    sd = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        corr = cov / np.outer(sd, sd)
+    v = hyp.values(x)
+    std = {}
+    for k, par in enumerate(hyp.params):
+        if par.log:
+            name = "mu_s" if par.name == "dmu_s" else par.name
+            base = v["mu_s"] - v["mu_k"] if par.name == "dmu_s" else v[par.name]
+            std[par.name] = base * sd[k]
+        else:
+            std[par.name] = float(sd[k])
+    # mu_s = mu_k + dmu_s: combine (delta method, with the covariance of the two log coordinates)
+    i_k, i_d = hyp.names.index("mu_k"), hyp.names.index("dmu_s")
+    g = np.zeros(p)
+    g[i_k] = v["mu_k"]
+    g[i_d] = v["mu_s"] - v["mu_k"]
+    std["mu_s"] = float(math.sqrt(max(g @ cov @ g, 0.0)))
+    return std, corr
+
+
+def fit_hypothesis(model: FeatureModel, hyp: Hypothesis, which, *, x0=None, max_jac: int = 8,
+                   tol: float = 1e-3) -> FitResult:
+    """Least-squares fit of ``hyp`` on the recordings ``which``.
+
+    Parameters
+    ----------
+    model : FeatureModel
+    hyp : Hypothesis
+    which : sequence of int
+        Recordings fitted.
+    x0 : ndarray, optional
+        Start (default ``hyp.x_start()``), clipped into the bounds.
+    max_jac : int
+        At most this many Jacobians (each ``p + 1`` model evaluations per recording).
+    tol : float
+        ``ftol`` and ``xtol`` of the trust-region iteration (relative).
+    """
+    lo, hi = hyp.bounds()
+    x0 = hyp.x_start() if x0 is None else np.asarray(x0, dtype=float)
+    span = hi - lo
+    x0 = np.clip(x0, lo + 1e-9 * span, hi - 1e-9 * span)
+    memo = {}
+
+    def fun(x):
+        k = tuple(np.round(x, 14))
+        if k not in memo:
+            memo[k] = model.residuals([hyp.point(x)], which)[0]
+        return memo[k]
+
+    jmemo = {}
+
+    def jac(x):
+        J, f0 = jacobian(model, hyp, x, which)
+        k = tuple(np.round(x, 14))
+        memo[k], jmemo[k] = f0, J
+        return -J   # d residual / dx
+
+    res = least_squares(fun, x0, jac=jac, bounds=(lo, hi), x_scale=hyp.steps(), method="trf",
+                        ftol=tol, xtol=tol, gtol=1e-8, max_nfev=max_jac * 3)
+    x = res.x
+    f = fun(x)
+    k = tuple(np.round(x, 14))
+    J = jmemo[k] if k in jmemo else jacobian(model, hyp, x, which)[0]
+    rss = float(f @ f)
+    std, corr = _uncertainty(hyp, x, J, rss, f.size)
+    return FitResult(hypothesis=hyp, x=x, values=hyp.values(x), std=std, corr=corr, rss_fit=rss,
+                     n_fit=int(f.size), rmse_fit=math.sqrt(rss / f.size), nfev=int(res.nfev), J=J,
+                     status=str(res.message), extra={"njac": len(jmemo) + (k not in jmemo)})

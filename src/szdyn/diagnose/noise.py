@@ -1,0 +1,49 @@
+"""The noise floor: how close a correct model can come to a recording in the compared feature.
+
+Two parts, both estimated without knowing the truth:
+
+* **Sensor noise** of the measured smoothed band speed: the recording is split into its even
+  and odd rows, two independent samplings of the same motion; the speed of each half is
+  computed with the same filter and ``sigma_sensor = std(v_even - v_odd) / 2`` (each half has
+  twice the variance of the whole, the difference four times).
+* **Unreproducible impact bumps**: the model itself run twice with the wheel's initial offset
+  shifted by a quarter of a circle pitch; the bumps' phase changes but not the physics, so
+  ``sigma_bump = rms(v_1 - v_2) / sqrt(2)``.
+
+``floor = sqrt(sigma_sensor^2 + sigma_bump^2)`` (rad/s) is the RMSE a correct model would
+reach; the diagnosis calls a mismatch significant only above it.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..recordings import Recording, speeds
+from .data import Prepared, WINDOW_S
+
+__all__ = ["sensor_noise", "bump_noise"]
+
+
+def sensor_noise(p: Prepared, window_s: float = WINDOW_S) -> float:
+    """Sensor noise of the smoothed band speed of one recording (rad/s)."""
+    rec = p.rec
+    halves = []
+    for k in (0, 1):
+        sub = Recording(name=rec.name, t=rec.t[k::2], theta_w=rec.theta_w[k::2],
+                        theta_b=rec.theta_b[k::2], conditions=rec.conditions)
+        t, _, wb = speeds(sub, window_s)
+        halves.append(np.interp(p.t_feat, t, wb))
+    d = halves[0] - halves[1]
+    return float(np.std(d) / 2.0)
+
+
+def bump_noise(model, i: int, base_changes: dict) -> float:
+    """Unreproducible part of the model's smoothed band speed for recording ``i`` (rad/s)."""
+    r = model.recordings[i]
+    # a quarter of a circle pitch: half a pitch would land on the symmetric configuration
+    shift = 0.5 * math.pi / r.params.n_circles
+    off = r.params.default_wheel_offset() + shift
+    a = model.speeds([(base_changes, {})], [i])[0][0]
+    b = model.speeds([({**base_changes, "q_w0": off}, {})], [i])[0][0]
+    return float(np.sqrt(np.mean((a - b) ** 2)) / math.sqrt(2.0))

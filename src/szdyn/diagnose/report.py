@@ -1,0 +1,303 @@
+"""Write a fitted :class:`~szdyn.diagnose.diagnosis.Diagnosis`: JSON, Markdown, PNGs, parameters.
+
+Files in ``out`` (each written atomically):
+
+* ``diagnosis.json`` — machine-readable result (schema of issue 5, plus details);
+* ``report.md`` — what was compared, where the mismatch is, which effect, its parameters with
+  uncertainty, its expression, the fit before/after, units;
+* ``params.json`` — the updated model (:meth:`szdyn.params.ParameterSet.to_json`; load with
+  ``python -m szdyn.run --params``);
+* ``residual_time.png``, ``residual_features.png``, ``candidates.png``, ``heldout_fit.png``.
+"""
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+
+from ..io import atomic_write_text, write_json
+from ..plots import _pyplot, save_png
+from .candidates import CANDIDATES, FIXED_UNIDENTIFIED
+from .data import FEATURE_DT, WINDOW_S
+from .locate import feature_table
+
+__all__ = ["write_report", "to_json", "updated_parameters"]
+
+COMPARED = (f"smoothed band speed omega_b (Savitzky-Golay derivative of theta_b, degree 2, window "
+            f"{WINDOW_S:g} s) every {FEATURE_DT:g} s, measured minus model, with the model driven by "
+            f"the measured wheel speed (so equal to the smoothed relative speed omega_w - omega_b "
+            f"up to the shared omega_w); slip per revolution and stroke integrate the same signal")
+
+UNITS = {"rmse": "rad/s", "heldout_rmse": "rad/s", "noise_floor": "rad/s", "t0": "s", "t1": "s",
+         "score (mismatch)": "segment RMS / noise floor (1)",
+         "score (effect)": "share of the calibrated model's excess residual energy over the noise floor "
+                           "that the effect explains (1; linearised for candidates not refitted)",
+         "k_c": "N*m/rad", "b_c": "N*m*s/rad", "k_imp": "N/m^n", "b_imp": "N*s/m^(n+1)", "mu_s": "1", "mu_k": "1"}
+
+
+def _f(x, fmt=".4g"):
+    return "nan" if x is None or (isinstance(x, float) and not math.isfinite(x)) else format(x, fmt)
+
+
+def updated_parameters(d):
+    """The updated :class:`~szdyn.params.ParameterSet` (defaults + manifest + calibration + effect).
+
+    The recording-specific load ``m_b`` is that of the first fit recording's defaults (the
+    parameter file describes the machine; set ``m_b`` per run).
+    """
+    from ..defaults import default_parameters
+
+    rec0 = d.recordings_[0]
+    base = default_parameters(rec0.params.n_circles)
+    # manifest [model] overrides other than the load
+    over = {k: rec0.params[k] for k in rec0.params.values if rec0.params[k] != base[k] and k != "m_b"}
+    mc, _ = d.final_.hypothesis.point(d.final_.x)
+    return base.replace(**{**over, **mc})
+
+
+def _clean(x):
+    """JSON-ready copy: numpy scalars/arrays to Python, NaN/inf to None (JSON has neither)."""
+    if isinstance(x, dict):
+        return {str(k): _clean(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_clean(v) for v in x]
+    if isinstance(x, np.ndarray):
+        return _clean(x.tolist())
+    if isinstance(x, (bool, np.bool_)):
+        return bool(x)
+    if isinstance(x, (int, np.integer)):
+        return int(x)
+    if isinstance(x, (float, np.floating)):
+        return float(x) if math.isfinite(x) else None
+    return x
+
+
+def to_json(d) -> dict:
+    """The diagnosis as a JSON-ready dict (NaN, e.g. no held-out recording, becomes null)."""
+    return _clean(_to_json(d))
+
+
+def _to_json(d) -> dict:
+    cal = d.calibrated_
+    b = cal.rmse_fit
+    effects = []
+    screened = {s["id"]: s for s in d.screening_}
+    for cid, cand in CANDIDATES.items():
+        if cid not in screened and cid not in d.refits_:
+            continue
+        s = screened.get(cid, {})
+        lin = s.get("rmse_linear", math.nan)
+        excess = max(b * b - d.floor_ ** 2, 1e-30)
+        item = {"id": cid, "kind": cand.kind, "selected": cid in d.selected_,
+                "expression": cand.expression, "explains": cand.explains,
+                "screen_rmse": lin, "refitted": cid in d.refits_}
+        if cid in d.refits_:
+            r = d.refits_[cid]
+            res = r["result"]
+            cv = res.hypothesis.candidate_values(res.x)
+            mc, sc = cand.apply(cv)
+            item.update({"score": r["explained"], "parameters": {**mc, **sc},
+                         "fit_coordinates": cv,
+                         "std": {k: res.std.get(k, math.nan) for k in cv},
+                         "primary": {"name": cand.primary, "value": cand.primary_of(cv)},
+                         "fit_rmse": res.rmse_fit, "heldout_rmse": r["heldout_rmse"],
+                         "dbic": r["dbic"], "heldout_gain": r["heldout_gain"], "eligible": r["eligible"]})
+        else:
+            item.update({"score": float(np.clip((b * b - lin * lin) / excess, 0, 1)) if d.mismatch_ else 0.0,
+                         "parameters": {}})
+        effects.append(item)
+    effects.sort(key=lambda e: -e["score"])
+    mism = [{"recording": s["recording"], "t0": s["t0"], "t1": s["t1"], "regime": s["regime"],
+             "kind": s["kind"], "score": s["score"]} for s in d.location_["mismatch"]] if d.mismatch_ else []
+    fin = d.final_
+    sensor = {}
+    if fin.hypothesis.candidate is not None:
+        _, sensor = fin.hypothesis.point(fin.x)
+    return {
+        "selected": list(d.selected_),
+        "verdict": d.verdict_,
+        "effects": effects,
+        "mismatch": mism,
+        "calibrated": {k: cal.values[k] for k in ("k_c", "b_c", "k_imp", "mu_s", "mu_k")},
+        "calibrated_std": {k: cal.std.get(k, math.nan) for k in ("k_c", "b_c", "k_imp", "mu_s", "mu_k")},
+        "not_identified": {k: d.recordings_[0].params[k] for k in FIXED_UNIDENTIFIED},
+        "final": {"values": fin.values, "std": fin.std, "sensor": sensor},
+        "fit": {"before": {"heldout_rmse": d.heldout_["before"]["heldout_rmse"],
+                           "fit_rmse": cal.rmse_fit,
+                           "per_recording": d.heldout_["before"]["per_recording"]},
+                "after": {"heldout_rmse": d.heldout_["after"]["heldout_rmse"],
+                          "fit_rmse": fin.rmse_fit,
+                          "per_recording": d.heldout_["after"]["per_recording"]}},
+        "noise_floor": d.floor_, "noise_floor_parts": d.floor_parts_,
+        "mismatch_significant": bool(d.mismatch_),
+        "rule": d.rule.__dict__,
+        "location": {"recordings": d.location_["recordings"], "follows": d.location_["follows"]},
+        "recordings": [{"name": r.name, "role": r.role, "load_kg": r.load_kg,
+                        "t0": r.t0, "t1": r.t1, "samples": len(r.rec)} for r in d.recordings_],
+        "compared": COMPARED,
+        "units": UNITS,
+        "cost": {"seconds": d.timings_, "model_runs": d.n_runs_, "failed_runs": d.n_failed_},
+    }
+
+
+def _report_md(d, js) -> str:
+    L = ["# szdyn diagnosis", ""]
+    v = d.verdict_
+    if v == "none":
+        L += ["**Verdict: none.** The calibrated base model reproduces the recordings to within the "
+              f"noise floor (fit RMSE {_f(d.calibrated_.rmse_fit)} rad/s, floor {_f(d.floor_)} rad/s, "
+              f"ratio {d.calibrated_.rmse_fit / d.floor_:.2f} <= {d.rule.min_excess}): nothing significant "
+              "is missing.", ""]
+    elif v == "selected":
+        e = CANDIDATES[d.selected_[0]]
+        L += [f"**Verdict: `{e.id}`.** {e.explains}.", "", f"Term: `{e.expression}`", ""]
+    else:
+        L += ["**Verdict: unexplained.** The calibrated model misses something significant "
+              f"({d.calibrated_.rmse_fit / d.floor_:.1f}x the noise floor) but no candidate of the "
+              "library passed the selection rule; see the candidates table.", ""]
+    L += ["## What was compared", "", COMPARED + ".", "",
+          "Recordings: " + ", ".join(f"`{r.name}` ({r.role}, {r.load_kg:g} kg)" for r in d.recordings_) + ".", "",
+          f"Noise floor {_f(d.floor_)} rad/s = sqrt(sensor {_f(d.floor_parts_['sensor'])}^2 + "
+          f"impact bumps {_f(d.floor_parts_['bump'])}^2) (see `szdyn.diagnose.noise`).", "",
+          "## Calibration (base model, fit recordings)", "",
+          "| coefficient | value | std | unit |", "|---|---|---|---|"]
+    for k in ("k_c", "b_c", "k_imp", "mu_s", "mu_k"):
+        L.append(f"| {k} | {_f(d.calibrated_.values[k])} | {_f(d.calibrated_.std.get(k))} | {UNITS[k]} |")
+    L += ["", f"`b_imp` is not identifiable from these features (below the noise floor and collinear with "
+          f"`b_c`, `k_imp`): kept at {_f(d.recordings_[0].params['b_imp'])} {UNITS['b_imp']}.",
+          "Standard deviations are local (Jacobian) estimates, inflated x2 for the overlap of neighbouring "
+          "samples; coefficients in a flat valley (b_c, k_imp against mu_s, mu_k) can be further off than "
+          "they say. Judge the fit, not the coefficients.", "",
+          f"Fit RMSE {_f(d.calibrated_.rmse_fit)} rad/s ({d.calibrated_.rmse_fit / d.floor_:.2f}x the floor).", "",
+          "## Where the mismatch is (calibrated base model)", ""]
+    if js["mismatch"]:
+        L += ["| recording | t0 (s) | t1 (s) | regime | score (RMS / floor) |", "|---|---|---|---|---|"]
+        for m in js["mismatch"]:
+            L.append(f"| {m['recording']} | {m['t0']:.2f} | {m['t1']:.2f} | {m['regime']} | {m['score']:.1f} |")
+    else:
+        L.append("No segment stands out: the residual is at the noise floor.")
+    L += ["", "Per recording (Ljung-Box on the residual thinned to one sample per window; "
+          "cross-correlation with the wheel speed, prewhitened; spectral peaks):", "",
+          "| recording | role | RMSE (rad/s) | / floor | white (p) | indep. of wheel speed (p) | peaks |",
+          "|---|---|---|---|---|---|---|"]
+    for r in d.location_["recordings"]:
+        w = r.get("whiteness", {})
+        c = r.get("xcorr_wheel_speed", {})
+        pk = "; ".join(f"{p['freq_hz']:.2f} Hz" + (f" ({', '.join(p['orders'])})" if p["orders"] else "")
+                       for p in r["peaks"]) or "-"
+        L.append(f"| {r['recording']} | {r['role']} | {_f(r['rmse'])} | {r['ratio_to_floor']:.1f} | "
+                 f"{w.get('white', '-')} ({_f(w.get('p_value'), '.2g')}) | {c.get('independent', '-')} "
+                 f"({_f(c.get('p_value'), '.2g')}) | {pk} |")
+    L += ["", "What the residual follows (R^2 of a one-feature linear fit over all recordings):", "",
+          "| feature | R^2 | would suggest |", "|---|---|---|"]
+    for f in d.location_["follows"]:
+        L.append(f"| {f['feature']} ({f['unit']}) | {f['r2']:.3f} | {f['suggests']} |")
+    L += ["", "Plots: `residual_time.png`, `residual_features.png`.", "",
+          "## Candidate effects", "",
+          "Screened linearly at the calibrated point, the best "
+          f"{d.shortlist} refitted nonlinearly (base coefficients refitted too). Rule: {d.rule}.", "",
+          "| effect | score | screen RMSE | refit RMSE | held-out RMSE | dBIC | eligible | selected |",
+          "|---|---|---|---|---|---|---|---|"]
+    for e in js["effects"]:
+        L.append(f"| {e['id']} | {e['score']:.2f} | {_f(e['screen_rmse'])} | {_f(e.get('fit_rmse'))} | "
+                 f"{_f(e.get('heldout_rmse'))} | {_f(e.get('dbic'), '.1f')} | {e.get('eligible', '-')} | "
+                 f"{'**yes**' if e['selected'] else ''} |")
+    L += ["", "Plot: `candidates.png`.", ""]
+    if d.selected_:
+        e = next(x for x in js["effects"] if x["selected"])
+        L += [f"## Selected: `{e['id']}`", "", f"Expression: `{e['expression']}`", "",
+              "| parameter | value | std |", "|---|---|---|"]
+        for k, val in e["fit_coordinates"].items():
+            L.append(f"| {k} | {_f(val)} | {_f(e['std'].get(k))} |")
+        L += ["", f"Model/sensor parameters set: `{e['parameters']}`; effect parameter "
+              f"`{e['primary']['name']}` = {_f(e['primary']['value'])}.", ""]
+    fb, fa = js["fit"]["before"], js["fit"]["after"]
+    L += ["## Fit before and after", "", "| | fit RMSE (rad/s) | held-out RMSE (rad/s) |", "|---|---|---|",
+          f"| before (calibrated base) | {_f(fb['fit_rmse'])} | {_f(fb['heldout_rmse'])} |",
+          f"| after (updated model) | {_f(fa['fit_rmse'])} | {_f(fa['heldout_rmse'])} |", ""]
+    if fb["per_recording"]:
+        L += ["| held-out recording | before | after |", "|---|---|---|"]
+        for k in fb["per_recording"]:
+            L.append(f"| {k} | {_f(fb['per_recording'][k])} | {_f(fa['per_recording'].get(k))} |")
+    L += ["", "Plot: `heldout_fit.png`. Updated parameters: `params.json` (`python -m szdyn.run --params "
+          "params.json`)" + (f"; sensor corrections (not model parameters): `{js['final']['sensor']}`"
+                             if js["final"]["sensor"] else "") + ".", "",
+          "## Units", "", "Time s, angles rad, speeds rad/s, torques N m, SI throughout. " +
+          "; ".join(f"{k}: {u}" for k, u in UNITS.items()) + ".", "",
+          f"Cost: {sum(d.timings_.values()):.0f} s wall ({d.timings_}), {d.n_runs_} model runs"
+          f" ({d.n_failed_} failed with both integrators).", ""]
+    return "\n".join(L)
+
+
+def _plots(d, out: Path):
+    plt = _pyplot()
+    recs = d.recordings_
+    n = len(recs)
+    ncol = min(3, n)
+    nrow = math.ceil(n / ncol)
+    fig, axes = plt.subplots(nrow, ncol, figsize=(4.2 * ncol, 2.6 * nrow), squeeze=False, sharey=True)
+    for k, r in enumerate(recs):
+        ax = axes[k // ncol][k % ncol]
+        ax.plot(r.t_feat, r.y - d.base_speed_[k], lw=1, label="calibrated base")
+        if d.selected_:
+            ax.plot(r.t_feat, r.y - d.final_speed_[k], lw=1, label="updated")
+        ax.axhspan(-d.floor_, d.floor_, color="0.85", lw=0)
+        ax.set_title(f"{r.name} ({r.role})", fontsize=8)
+        ax.set_xlabel("t (s)")
+    axes[0][0].set_ylabel("residual omega_b (rad/s)")
+    axes[0][0].legend(fontsize=7)
+    for k in range(n, nrow * ncol):
+        axes[k // ncol][k % ncol].axis("off")
+    fig.tight_layout()
+    save_png(fig, out / "residual_time.png")
+
+    ft = feature_table(recs, [d.base_speed_[k] for k in range(n)])
+    r_all = np.concatenate([r.y - d.base_speed_[k] for k, r in enumerate(recs)])
+    fig, axes = plt.subplots(1, 4, figsize=(15, 3.2), sharey=True)
+    for ax, (name, lab) in zip(axes, (("band_speed", "band speed (rad/s)"), ("band_accel", "band accel. (rad/s^2)"),
+                                      ("time", "time in recording (s)"), ("sin_band_angle", "sin(band angle)"))):
+        ax.scatter(ft[name], r_all, s=3, c=ft["load"], cmap="viridis")
+        ax.set_xlabel(lab)
+    axes[0].set_ylabel("residual omega_b (rad/s)")
+    fig.suptitle("calibrated base model: residual against physical features (colour: load)", fontsize=9)
+    fig.tight_layout()
+    save_png(fig, out / "residual_features.png")
+
+    js_eff = _to_json(d)["effects"]
+    fig, ax = plt.subplots(figsize=(7, 3.2))
+    ids = [e["id"] for e in js_eff]
+    ax.barh(ids, [e["score"] for e in js_eff], color=["C3" if e["selected"] else "C0" for e in js_eff])
+    ax.axvline(d.rule.min_explained, color="k", ls="--", lw=0.8)
+    ax.set_xlabel("share of the excess residual energy explained")
+    ax.invert_yaxis()
+    fig.tight_layout()
+    save_png(fig, out / "candidates.png")
+
+    held = [k for k, r in enumerate(recs) if r.role != "fit"] or list(range(n))
+    fig, axes = plt.subplots(len(held), 1, figsize=(7, 2.4 * len(held)), squeeze=False)
+    for ax, k in zip(axes[:, 0], held):
+        r = recs[k]
+        ax.plot(r.t_feat, r.y, "k", lw=1.2, label="measured")
+        ax.plot(r.t_feat, d.base_speed_[k], lw=1, label="before (calibrated base)")
+        if d.selected_:
+            ax.plot(r.t_feat, d.final_speed_[k], lw=1, ls="--", label=f"after (+ {d.selected_[0]})")
+        ax.set_title(f"{r.name} ({r.role})", fontsize=8)
+        ax.set_ylabel("omega_b (rad/s)")
+    axes[-1, 0].set_xlabel("t (s)")
+    axes[0, 0].legend(fontsize=7)
+    fig.tight_layout()
+    save_png(fig, out / "heldout_fit.png")
+
+
+def write_report(d, out) -> dict:
+    """Write every output file of a fitted diagnosis into ``out``; return the JSON dict."""
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    js = _to_json(d)
+    updated_parameters(d).to_json(out / "params.json")
+    _plots(d, out)
+    atomic_write_text(out / "report.md", _report_md(d, js))
+    js = _clean(js)
+    write_json(out / "diagnosis.json", js)
+    return js

@@ -1,0 +1,206 @@
+"""The diagnosis (issue 5): library, transforms, rule, and a small end-to-end proof.
+
+The end-to-end cases are a small version of ``bench/diagnosis_grid.py`` (DIAGNOSIS.md): four
+1 s recordings (N_c = 100, loads 0.5 and 1 kg, ramps to +-pi rad/s), three candidates, one
+refit. A concealed viscous drag must be named, its parameter recovered and the held-out error
+cut; null recordings must give "none".
+"""
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from szdyn.diagnose.candidates import CALIBRATED, CANDIDATES
+from szdyn.diagnose.command import choose_heldout
+from szdyn.diagnose.engine import apply_sensor_transform, model_speed
+from szdyn.diagnose.fit import Hypothesis
+from szdyn.diagnose.selection import SelectionRule, screen
+from szdyn.params import param_names
+from szdyn.run import main as run_main
+from szdyn.synth import EFFECTS, RampSpec, synthesize
+
+START = {"k_c": 0.05, "b_c": 7.5e-3, "k_imp": 4e12, "mu_s": 0.3, "mu_k": 0.25}
+
+
+# ----------------------------------------------------------------------------- library
+def test_library_covers_every_concealed_effect():
+    assert set(EFFECTS) <= set(CANDIDATES)
+
+
+@pytest.mark.parametrize("cid", list(CANDIDATES))
+def test_candidate_at_zero_is_the_base_model(cid):
+    c = CANDIDATES[cid]
+    zeros = {p.name: (p.start if p.start is not None else 0.0) for p in c.params}
+    zeros = {k: (0.0 if k != "v_st" else v) for k, v in zeros.items()}
+    mc, sc = c.apply(zeros)
+    assert mc == {} and sc == {}
+
+
+@pytest.mark.parametrize("cid", [c for c in CANDIDATES if CANDIDATES[c].kind == "model"])
+def test_candidate_sets_only_model_parameters(cid):
+    c = CANDIDATES[cid]
+    vals = {p.name: 0.5 * p.hi if p.hi > 0 else 0.5 * p.lo for p in c.params}
+    mc, sc = c.apply(vals)
+    assert mc and sc == {}
+    assert set(mc) <= set(param_names())
+
+
+def test_position_periodic_coordinates_round_trip():
+    # a_rev sin(q + phi) == a_s sin(q) + a_c cos(q)
+    c = CANDIDATES["position_periodic"]
+    mc, _ = c.apply({"a_rev_s": 0.03, "a_rev_c": -0.04})
+    q = np.linspace(0, 7, 50)
+    lhs = mc["a_rev"] * np.sin(q + mc["phi_rev"])
+    assert np.allclose(lhs, 0.03 * np.sin(q) - 0.04 * np.cos(q))
+    assert mc["a_rev"] == pytest.approx(0.05)
+
+
+def test_hypothesis_start_and_constraint():
+    h = Hypothesis(START, CANDIDATES["slider_viscous"])
+    v = h.values(h.x_start())
+    for k, val in START.items():
+        assert v[k] == pytest.approx(val)
+    assert v["c_visc"] == 0.0
+    lo, hi = h.bounds()
+    # mu_s >= mu_k at every corner of the box (fitted through the excess dmu_s > 0)
+    for x in (lo, hi):
+        vv = h.values(x)
+        assert vv["mu_s"] > vv["mu_k"] > 0
+    mc, sc = h.point(h.x_start())
+    assert sc == {} and set(mc) == set(START)
+    assert len(h.params) == len(CALIBRATED) + 1
+
+
+# ----------------------------------------------------------------------------- transforms
+def test_sensor_transform_scale_and_delay_are_exact_on_a_ramp():
+    t = np.arange(0, 2, 1e-3)
+    theta = 0.5 * 3.0 * t ** 2
+    s = apply_sensor_transform(t, theta, {"encoder_scale_b": 1.02, "encoder_delay_b": 0.01})
+    k = t > 0.02
+    assert np.allclose(s[k], 1.02 * 0.5 * 3.0 * (t[k] - 0.01) ** 2, atol=2e-6)
+    assert apply_sensor_transform(t, theta, {}) is theta
+
+
+def test_model_speed_differentiates_a_ramp_exactly():
+    t = np.arange(0, 2, 1e-3)
+    tf = np.linspace(0.2, 1.8, 9)
+    v = model_speed(t, 0.5 * 3.0 * t ** 2, tf)
+    assert np.allclose(v, 3.0 * tf, rtol=1e-9, atol=1e-9)
+
+
+# ----------------------------------------------------------------------------- rule
+def test_rule_says_none_at_the_noise_floor_and_picks_an_explaining_candidate():
+    rule = SelectionRule()
+    assert not rule.mismatch(b=0.006, floor=0.005)
+    assert rule.mismatch(b=0.05, floor=0.005)
+    good = rule.assess(b=0.05, c=0.006, floor=0.005, h0=0.06, hc=0.008, n_fit=400, k=1)
+    assert good["eligible"] and good["explained"] > 0.95
+    # fits better but does not generalise to held-out data
+    overfit = rule.assess(b=0.05, c=0.006, floor=0.005, h0=0.06, hc=0.058, n_fit=400, k=1)
+    assert not overfit["eligible"]
+    # explains a little: rejected even though the information criterion improves
+    weak = rule.assess(b=0.05, c=0.045, floor=0.005, h0=0.06, hc=0.04, n_fit=400, k=1)
+    assert weak["dbic"] > rule.min_dbic and not weak["eligible"]
+
+
+def test_linear_screening_recovers_a_linear_effect():
+    rng = np.random.default_rng(0)
+    Jb = rng.standard_normal((200, 3))
+    Jc = rng.standard_normal((200, 1))
+    r0 = Jb @ np.array([0.1, -0.2, 0.05]) + 0.3 * Jc[:, 0] + 1e-6 * rng.standard_normal(200)
+    dx, rss = screen(r0, Jb, Jc, -np.ones(4), np.ones(4))
+    assert np.allclose(dx, [0.1, -0.2, 0.05, 0.3], atol=1e-5)
+    assert rss < 1e-8
+    # a bound that forbids the needed sign leaves the residual of that column
+    dx2, rss2 = screen(r0, Jb, Jc, np.r_[-np.ones(3), 0.0], np.r_[np.ones(3), 0.0])
+    assert rss2 > 1.0
+
+
+def test_choose_heldout():
+    assert choose_heldout(["a"]) == ()
+    assert choose_heldout(["a", "b"]) == ("b",)
+    assert choose_heldout(list("abcdef")) == ("b", "e")
+
+
+# ----------------------------------------------------------------------------- command errors
+def test_diagnose_missing_manifest_is_a_clear_error(tmp_path, capsys):
+    rc = run_main(["diagnose", str(tmp_path / "nope.toml"), "--out", str(tmp_path / "o")])
+    assert rc == 2
+    err = capsys.readouterr().err
+    assert "nope.toml" in err and "Traceback" not in err
+
+
+def test_diagnose_unknown_candidate_is_a_clear_error(tmp_path, capsys):
+    m = tmp_path / "m.toml"
+    m.write_text("")
+    rc = run_main(["diagnose", str(m), "--out", str(tmp_path / "o"), "--candidates", "slider_viscus"])
+    assert rc == 2
+    assert "slider_viscus" in capsys.readouterr().err
+
+
+# ----------------------------------------------------------------------------- end to end
+RAMPS = (RampSpec("up", 2 * math.pi, 0.5, 0.5), RampSpec("down", -2 * math.pi, 0.5, 0.5))
+SMALL = ["--candidates", "slider_viscous,load_lift,encoder_scale", "--shortlist", "1", "--max-jac", "3",
+         "--quiet"]
+
+
+def _synth_and_diagnose(tmp_path_factory, effect, amplitude):
+    base = tmp_path_factory.mktemp(effect)
+    data, out = base / "data", base / "out"
+    synthesize(data, effect, amplitude, seed=5, loads_kg=(0.5, 1.0), ramps=RAMPS, dt=5e-5, verbose=False)
+    # the diagnosis must not read the answer: hide it
+    truth = json.loads((data / "truth.json").read_text())
+    (data / "truth.json").rename(base / "truth.json")
+    assert run_main(["diagnose", str(data / "manifest.toml"), "--out", str(out), *SMALL]) == 0
+    return truth, json.loads((out / "diagnosis.json").read_text()), out
+
+
+@pytest.fixture(scope="module")
+def viscous(tmp_path_factory):
+    return _synth_and_diagnose(tmp_path_factory, "slider_viscous", 0.4)
+
+
+@pytest.fixture(scope="module")
+def null(tmp_path_factory):
+    return _synth_and_diagnose(tmp_path_factory, "none", None)
+
+
+def test_concealed_viscous_drag_is_named_recovered_and_improves_heldout(viscous):
+    truth, d, out = viscous
+    assert d["selected"] == ["slider_viscous"]
+    e = next(x for x in d["effects"] if x["selected"])
+    c_true = truth["effect_parameters"]["c_visc"]
+    assert e["primary"]["name"] == "c_visc"
+    assert abs(e["primary"]["value"] / c_true - 1) < 0.3    # measured 16 % (seed 5)
+    assert d["fit"]["before"]["heldout_rmse"] / d["fit"]["after"]["heldout_rmse"] > 3
+    # outputs a user looks at, and the updated parameters load and carry the effect
+    for f in ("report.md", "params.json", "residual_time.png", "residual_features.png",
+              "candidates.png", "heldout_fit.png"):
+        assert (out / f).stat().st_size > 0
+    from szdyn.params import ParameterSet
+    p = ParameterSet.from_json(out / "params.json")
+    assert p["c_visc"] == pytest.approx(e["primary"]["value"])
+    assert p["k_c"] == pytest.approx(d["final"]["values"]["k_c"])
+    assert "slider_viscous" in (out / "report.md").read_text()
+
+
+def test_diagnosis_json_schema(viscous):
+    _, d, _ = viscous
+    assert set(d) >= {"selected", "effects", "mismatch", "calibrated", "fit"}
+    for e in d["effects"]:
+        assert set(e) >= {"id", "score", "selected", "parameters", "expression", "explains"}
+    for m in d["mismatch"]:
+        assert set(m) >= {"recording", "t0", "t1", "regime", "score"}
+    assert set(d["calibrated"]) == {"k_c", "b_c", "k_imp", "mu_s", "mu_k"}
+    assert d["fit"]["before"]["heldout_rmse"] > 0 and d["fit"]["after"]["heldout_rmse"] > 0
+
+
+def test_null_recordings_give_none(null):
+    truth, d, out = null
+    assert truth["effect"] == "none"
+    assert d["selected"] == [] and d["verdict"] == "none"
+    assert d["fit"]["after"]["heldout_rmse"] == d["fit"]["before"]["heldout_rmse"]
+    assert "Verdict: none" in (out / "report.md").read_text()
