@@ -231,20 +231,31 @@ def fit_hypothesis(model: FeatureModel, hyp: Hypothesis, which, *, x0=None, max_
 
     jmemo = {}
 
+    class _Budget(Exception):
+        pass
+
     def jac(x):
+        # least_squares has no budget on Jacobians (max_nfev counts residuals): stop it here
+        if len(jmemo) >= max_jac:
+            raise _Budget
         J, f0 = jacobian(model, hyp, x, which)
         k = tuple(np.round(x, 14))
         memo[k], jmemo[k] = f0, J
         return -J   # d residual / dx
 
-    res = least_squares(fun, x0, jac=jac, bounds=(lo, hi), x_scale=hyp.steps(), method="trf",
-                        ftol=tol, xtol=tol, gtol=1e-8, max_nfev=max_jac * 3)
-    x = res.x
+    try:
+        res = least_squares(fun, x0, jac=jac, bounds=(lo, hi), x_scale=hyp.steps(), method="trf",
+                            ftol=tol, xtol=tol, gtol=1e-8, max_nfev=max_jac * 3)
+        x, nfev, status = res.x, int(res.nfev), str(res.message)
+    except _Budget:
+        # the best point evaluated so far
+        kbest = min(memo, key=lambda k: float(memo[k] @ memo[k]))
+        x, nfev, status = np.array(kbest), len(memo), f"stopped after {max_jac} Jacobians"
     f = fun(x)
     k = tuple(np.round(x, 14))
     J = jmemo[k] if k in jmemo else jacobian(model, hyp, x, which)[0]
     rss = float(f @ f)
     std, corr = _uncertainty(hyp, x, J, rss, f.size)
     return FitResult(hypothesis=hyp, x=x, values=hyp.values(x), std=std, corr=corr, rss_fit=rss,
-                     n_fit=int(f.size), rmse_fit=math.sqrt(rss / f.size), nfev=int(res.nfev), J=J,
-                     status=str(res.message), extra={"njac": len(jmemo) + (k not in jmemo)})
+                     n_fit=int(f.size), rmse_fit=math.sqrt(rss / f.size), nfev=nfev, J=J,
+                     status=status, extra={"njac": len(jmemo) + (k not in jmemo)})
