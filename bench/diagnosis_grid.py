@@ -89,7 +89,7 @@ def write_md(results, path: Path, args):
          "`diagnose` runs as a user would (it never reads `truth.json`); the result is scored against "
          "`truth.json`. Amplitudes are drawn from each effect's realistic range (`szdyn.synth`).", "",
          "## Summary", "",
-         f"| measure | result | goal |", "|---|---|---|",
+         "| measure | result | goal |", "|---|---|---|",
          f"| concealed effect named correctly | {named}/{len(eff)} ({100 * named / max(len(eff), 1):.0f} %) | >= 90 % |",
          f"| false discoveries on null cases (an effect selected) | {fd}/{len(null)} | 0 |",
          f"| null cases where a mismatch was flagged but left unexplained | {alarms - fd}/{len(null)} | |",

@@ -21,7 +21,7 @@ log space (``log=True``: positive, relative changes); effect parameters in linea
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from collections.abc import Callable
 
 __all__ = ["FitParam", "Candidate", "CANDIDATES", "CALIBRATED", "FIXED_UNIDENTIFIED",
@@ -89,7 +89,6 @@ class Candidate:
     primary_of: Callable
     expression: str
     explains: str
-    fixed: dict = field(default_factory=dict)
 
 
 def _lin(name):

@@ -18,7 +18,7 @@ import numpy as np
 
 from .candidates import CANDIDATES, Candidate
 from .engine import FeatureModel, rms
-from .fit import FitResult, Hypothesis, fit_hypothesis, jacobian
+from .fit import Hypothesis, fit_hypothesis, jacobian
 from .locate import locate
 from .noise import bump_noise, sensor_noise
 from .selection import SelectionRule, screen

@@ -204,11 +204,6 @@ class FeatureModel:
         y = np.concatenate([self.recordings[i].y for i in which])
         return np.array([y - np.concatenate(row) for row in sp])
 
-    def runs(self, model_changes: dict, i: int):
-        """Cached run of recording ``i`` (``(t, theta_b)`` or None), running it if needed."""
-        self._run_all([(i, _key(model_changes))])
-        return self._cache[(i, _key(model_changes))]
-
 
 def rms(x) -> float:
     x = np.asarray(x, dtype=float)

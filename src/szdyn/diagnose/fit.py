@@ -90,7 +90,6 @@ class Hypothesis:
         if self.candidate is not None:
             cv = {p.name: v[p.name] for p in self.candidate.params}
             m2, s2 = self.candidate.apply(cv)
-            mc.update(self.candidate.fixed)
             mc.update(m2)
             sc.update(s2)
         return mc, sc
@@ -186,7 +185,6 @@ def _uncertainty(hyp, x, J, rss, n):
     std = {}
     for k, par in enumerate(hyp.params):
         if par.log:
-            name = "mu_s" if par.name == "dmu_s" else par.name
             base = v["mu_s"] - v["mu_k"] if par.name == "dmu_s" else v[par.name]
             std[par.name] = base * sd[k]
         else:
