@@ -16,7 +16,7 @@ import pytest
 from szdyn.diagnose.candidates import CALIBRATED, CANDIDATES
 from szdyn.diagnose.command import choose_heldout
 from szdyn.diagnose.engine import apply_sensor_transform, model_speed
-from szdyn.diagnose.fit import Hypothesis
+from szdyn.diagnose.fit import Hypothesis, fit_hypothesis
 from szdyn.diagnose.selection import SelectionRule, screen
 from szdyn.params import param_names
 from szdyn.run import main as run_main
@@ -119,6 +119,33 @@ def test_linear_screening_recovers_a_linear_effect():
     assert rss2 > 1.0
 
 
+class _CurvedModel:
+    """Stand-in for FeatureModel: a residual that is nonlinear in the log coefficients, zero at
+    TARGET, so that one Jacobian cannot reach the optimum."""
+
+    TARGET = {"k_c": 0.07, "b_c": 5e-3, "k_imp": 6e12, "mu_s": 0.36, "mu_k": 0.2}
+
+    def residuals(self, points, which):
+        out = []
+        for mc, _ in points:
+            z = np.array([math.log(mc[k] / self.TARGET[k]) for k in sorted(self.TARGET)])
+            r = z + 0.8 * z ** 3
+            out.append(np.concatenate([r * w for w in (1.0, 0.5, 2.0)] * len(which)))
+        return out
+
+
+def test_fit_stopped_by_its_budget_can_be_continued_to_the_optimum():
+    model, h = _CurvedModel(), Hypothesis(START)
+    first = fit_hypothesis(model, h, [0], max_jac=1)
+    assert first.budget_hit and first.extra["njac"] <= 2
+    more = fit_hypothesis(model, h, [0], max_jac=30, previous=first)
+    assert not more.budget_hit, more.status
+    assert more.extra["continued"] and more.extra["njac"] > first.extra["njac"]
+    assert more.rss_fit < 1e-3 * first.rss_fit
+    for k, v in _CurvedModel.TARGET.items():
+        assert more.values[k] == pytest.approx(v, rel=1e-3), k
+
+
 def test_choose_heldout():
     assert choose_heldout(["a"]) == ()
     assert choose_heldout(["a", "b"]) == ("b",)
@@ -139,6 +166,15 @@ def test_diagnose_unknown_candidate_is_a_clear_error(tmp_path, capsys):
     rc = run_main(["diagnose", str(m), "--out", str(tmp_path / "o"), "--candidates", "slider_viscus"])
     assert rc == 2
     assert "slider_viscus" in capsys.readouterr().err
+
+
+def test_diagnose_negative_polish_budget_is_a_clear_error(tmp_path, capsys):
+    m = tmp_path / "m.toml"
+    m.write_text("")
+    rc = run_main(["diagnose", str(m), "--out", str(tmp_path / "o"), "--polish-jac", "-1"])
+    assert rc == 2
+    err = capsys.readouterr().err
+    assert "--polish-jac" in err and "Traceback" not in err
 
 
 # ----------------------------------------------------------------------------- end to end
@@ -196,6 +232,11 @@ def test_diagnosis_json_schema(viscous):
         assert set(m) >= {"recording", "t0", "t1", "regime", "score"}
     assert set(d["calibrated"]) == {"k_c", "b_c", "k_imp", "mu_s", "mu_k"}
     assert d["fit"]["before"]["heldout_rmse"] > 0 and d["fit"]["after"]["heldout_rmse"] > 0
+    # what the reader needs to judge the fits: how each ended, and rivals that fit as well
+    assert d["calibration_status"].split(" after ")[0] in ("converged", "stopped by its budget")
+    refitted = [e for e in d["effects"] if e["refitted"]]
+    assert refitted and all(" Jacobians" in e["fit_status"] for e in refitted)
+    assert isinstance(d["indistinguishable"], list) and not set(d["indistinguishable"]) & set(d["selected"])
 
 
 def test_null_recordings_give_none(null):

@@ -46,6 +46,10 @@ class FitParam:
         Fit ``log(value)`` (positive coefficients).
     start : float or None
         Start value; ``None``: the base model's value (coefficients) or 0 (effects).
+    screen_at : tuple of float
+        For a *shape* parameter (one that changes nothing while the effect's amplitude is 0,
+        such as a Stribeck speed): the values at which the linear screening tries the
+        amplitude columns; the best becomes the refit's start. Empty: screened at ``start``.
     """
 
     name: str
@@ -55,6 +59,7 @@ class FitParam:
     probe: float
     log: bool = False
     start: float | None = None
+    screen_at: tuple = ()
 
 
 @dataclass(frozen=True)
@@ -147,7 +152,10 @@ CANDIDATES: dict[str, Candidate] = {c.id: c for c in (
         "band-speed-proportional drag: slip grows with held speed (2 pi vs pi) beyond Coulomb"),
     Candidate(
         "slider_stribeck", "model",
-        (FitParam("mu_st", "1", 0.0, 1.5, 0.1), FitParam("v_st", "rad/s", 0.05, 3.0, 0.2, start=0.5)),
+        (FitParam("mu_st", "1", 0.0, 1.5, 0.1), FitParam("v_st", "rad/s", 0.05, 3.0, 0.2, start=0.5,
+                                                      # log-spaced over the bounds: the column of
+                                                      # mu_st depends strongly on v_st
+                                                      screen_at=(0.1, 0.3, 1.0, 2.5))),
         _stribeck, "mu_st", lambda v: v["mu_st"],
         "tau_b += -R_bo m_b g mu_st exp(-(u_b/v_st)^2) sign(u_b)",
         "extra friction at low band speed: start-up lag and slow-speed slip, fading at speed"),

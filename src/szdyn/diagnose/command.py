@@ -27,8 +27,10 @@ def _build_parser():
     ap.add_argument("--out", type=Path, required=True, help="output directory")
     ap.add_argument("--candidates", help="comma-separated effect ids to screen (default: all: "
                     + ", ".join(CANDIDATES) + ")")
-    ap.add_argument("--shortlist", type=int, default=3, help="candidates refitted nonlinearly (default 3)")
-    ap.add_argument("--max-jac", type=int, default=6, help="Jacobians per nonlinear fit (default 6; calibration twice)")
+    ap.add_argument("--shortlist", type=int, default=2, help="candidates refitted nonlinearly (default 2)")
+    ap.add_argument("--max-jac", type=int, default=4, help="Jacobians per nonlinear fit (default 4; calibration twice)")
+    ap.add_argument("--polish-jac", type=int, help="Jacobians to continue a budget-stopped calibration or "
+                    "leading candidate with (default twice --max-jac; 0: never)")
     ap.add_argument("--workers", type=int, help="processes for model runs (default: CPU count)")
     ap.add_argument("--quiet", action="store_true", help="no progress on stderr")
     return ap
@@ -57,6 +59,8 @@ def diagnose_command(argv) -> int:
         raise UserInputError(f"diagnose: --shortlist must be >= 1, got {args.shortlist}")
     if args.max_jac < 1:
         raise UserInputError(f"diagnose: --max-jac must be >= 1, got {args.max_jac}")
+    if args.polish_jac is not None and args.polish_jac < 0:
+        raise UserInputError(f"diagnose: --polish-jac must be >= 0, got {args.polish_jac}")
     if args.workers is not None and args.workers < 1:
         raise UserInputError(f"diagnose: --workers must be >= 1, got {args.workers}")
     cands = None
@@ -86,7 +90,8 @@ def diagnose_command(argv) -> int:
     recs = prepare(man)
     log(f"{len(recs)} recording(s): {sum(r.role == 'fit' for r in recs)} fit, "
         f"{sum(r.role != 'fit' for r in recs)} held out")
-    d = Diagnosis(cands, shortlist=args.shortlist, max_jac=args.max_jac, workers=args.workers,
+    d = Diagnosis(cands, shortlist=args.shortlist, max_jac=args.max_jac,
+                  polish_jac=args.polish_jac, workers=args.workers,
                   log=log, progress=progress).fit(recs)
     js = write_report(d, args.out)
     sel = ", ".join(js["selected"]) or d.verdict_

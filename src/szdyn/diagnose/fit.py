@@ -169,6 +169,11 @@ class FitResult:
     status: str = ""
     extra: dict = field(default_factory=dict)
 
+    @property
+    def budget_hit(self) -> bool:
+        """Whether the fit was stopped by its Jacobian budget rather than converging."""
+        return self.status.startswith("stopped after")
+
 
 def _uncertainty(hyp, x, J, rss, n):
     p = J.shape[1]
@@ -199,7 +204,7 @@ def _uncertainty(hyp, x, J, rss, n):
 
 
 def fit_hypothesis(model: FeatureModel, hyp: Hypothesis, which, *, x0=None, max_jac: int = 8,
-                   tol: float = 1e-3) -> FitResult:
+                   tol: float = 1e-3, previous: FitResult | None = None) -> FitResult:
     """Least-squares fit of ``hyp`` on the recordings ``which``.
 
     Parameters
@@ -214,7 +219,12 @@ def fit_hypothesis(model: FeatureModel, hyp: Hypothesis, which, *, x0=None, max_
         At most this many Jacobians (each ``p + 1`` model evaluations per recording).
     tol : float
         ``ftol`` and ``xtol`` of the trust-region iteration (relative).
+    previous : FitResult, optional
+        Continue this fit (of the same hypothesis) from its optimum with another ``max_jac``
+        Jacobians; the result counts the Jacobians of both.
     """
+    if previous is not None:
+        x0 = previous.x
     lo, hi = hyp.bounds()
     x0 = hyp.x_start() if x0 is None else np.asarray(x0, dtype=float)
     span = hi - lo
@@ -256,4 +266,7 @@ def fit_hypothesis(model: FeatureModel, hyp: Hypothesis, which, *, x0=None, max_
     std, corr = _uncertainty(hyp, x, J, rss, f.size)
     return FitResult(hypothesis=hyp, x=x, values=hyp.values(x), std=std, corr=corr, rss_fit=rss,
                      n_fit=int(f.size), rmse_fit=math.sqrt(rss / f.size), nfev=nfev, J=J,
-                     status=status, extra={"njac": len(jmemo) + (k not in jmemo)})
+                     status=status,
+                     extra={"njac": len(jmemo) + (k not in jmemo) + (previous.extra["njac"] if previous else 0),
+                            "continued": previous is not None,
+                            "second_start": bool(previous and previous.extra.get("second_start"))})

@@ -73,6 +73,14 @@ def _clean(x):
     return x
 
 
+def _status(res) -> str:
+    """How a nonlinear fit ended, for the reader (converged or stopped by its budget)."""
+    how = "stopped by its budget" if res.budget_hit else "converged"
+    more = (", from a second start" if res.extra.get("second_start") else "") + \
+        (", continued once" if res.extra.get("continued") else "")
+    return f"{how} after {res.extra['njac']} Jacobians{more}"
+
+
 def to_json(d) -> dict:
     """The diagnosis as a JSON-ready dict (NaN, e.g. no held-out recording, becomes null)."""
     return _clean(_to_json(d))
@@ -102,7 +110,8 @@ def _to_json(d) -> dict:
                          "std": {k: res.std.get(k, math.nan) for k in cv},
                          "primary": {"name": cand.primary, "value": cand.primary_of(cv)},
                          "fit_rmse": res.rmse_fit, "heldout_rmse": r["heldout_rmse"],
-                         "dbic": r["dbic"], "heldout_gain": r["heldout_gain"], "eligible": r["eligible"]})
+                         "dbic": r["dbic"], "heldout_gain": r["heldout_gain"], "eligible": r["eligible"],
+                         "fit_status": _status(res)})
         else:
             item.update({"score": float(np.clip((b * b - lin * lin) / excess, 0, 1)) if d.mismatch_ else 0.0,
                          "parameters": {}})
@@ -117,10 +126,12 @@ def _to_json(d) -> dict:
     return {
         "selected": list(d.selected_),
         "verdict": d.verdict_,
+        "indistinguishable": list(d.indistinguishable_),
         "effects": effects,
         "mismatch": mism,
         "calibrated": {k: cal.values[k] for k in ("k_c", "b_c", "k_imp", "mu_s", "mu_k")},
         "calibrated_std": {k: cal.std.get(k, math.nan) for k in ("k_c", "b_c", "k_imp", "mu_s", "mu_k")},
+        "calibration_status": _status(cal),
         "not_identified": {k: d.recordings_[0].params[k] for k in FIXED_UNIDENTIFIED},
         "final": {"values": fin.values, "std": fin.std, "sensor": sensor},
         "fit": {"before": {"heldout_rmse": d.heldout_["before"]["heldout_rmse"],
@@ -152,6 +163,12 @@ def _report_md(d, js) -> str:
     elif v == "selected":
         e = CANDIDATES[d.selected_[0]]
         L += [f"**Verdict: `{e.id}`.** {e.explains}.", "", f"Term: `{e.expression}`", ""]
+        if d.indistinguishable_:
+            L += ["**Not distinguishable from these recordings:** "
+                  + ", ".join(f"`{k}`" for k in d.indistinguishable_)
+                  + f" fit(s) within {d.rule.min_dbic:g} of the selected effect in the information "
+                  "criterion. Recordings that separate them (other loads, both directions, slow "
+                  "ramps) would decide; the selected one explains the most.", ""]
     else:
         L += ["**Verdict: unexplained.** The calibrated model misses something significant "
               f"({d.calibrated_.rmse_fit / d.floor_:.1f}x the noise floor) but no candidate of the "
@@ -169,7 +186,8 @@ def _report_md(d, js) -> str:
           "Standard deviations are local (Jacobian) estimates, inflated x2 for the overlap of neighbouring "
           "samples; coefficients in a flat valley (b_c, k_imp against mu_s, mu_k) can be further off than "
           "they say. Judge the fit, not the coefficients.", "",
-          f"Fit RMSE {_f(d.calibrated_.rmse_fit)} rad/s ({d.calibrated_.rmse_fit / d.floor_:.2f}x the floor).", "",
+          f"Fit RMSE {_f(d.calibrated_.rmse_fit)} rad/s ({d.calibrated_.rmse_fit / d.floor_:.2f}x the floor); "
+          f"the fit {_status(d.calibrated_)}.", "",
           "## Where the mismatch is (calibrated base model)", ""]
     if js["mismatch"]:
         L += ["| recording | t0 (s) | t1 (s) | regime | score (RMS / floor) |", "|---|---|---|---|---|"]
@@ -197,12 +215,12 @@ def _report_md(d, js) -> str:
           "## Candidate effects", "",
           "Screened linearly at the calibrated point, the best "
           f"{d.shortlist} refitted nonlinearly (base coefficients refitted too). Rule: {d.rule}.", "",
-          "| effect | score | screen RMSE | refit RMSE | held-out RMSE | dBIC | eligible | selected |",
-          "|---|---|---|---|---|---|---|---|"]
+          "| effect | score | screen RMSE | refit RMSE | held-out RMSE | dBIC | eligible | selected | refit |",
+          "|---|---|---|---|---|---|---|---|---|"]
     for e in js["effects"]:
         L.append(f"| {e['id']} | {e['score']:.2f} | {_f(e['screen_rmse'])} | {_f(e.get('fit_rmse'))} | "
                  f"{_f(e.get('heldout_rmse'))} | {_f(e.get('dbic'), '.1f')} | {e.get('eligible', '-')} | "
-                 f"{'**yes**' if e['selected'] else ''} |")
+                 f"{'**yes**' if e['selected'] else ''} | {e.get('fit_status', '-')} |")
     L += ["", "Plot: `candidates.png`.", ""]
     if d.selected_:
         e = next(x for x in js["effects"] if x["selected"])
