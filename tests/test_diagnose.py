@@ -104,6 +104,10 @@ def test_rule_says_none_at_the_noise_floor_and_picks_an_explaining_candidate():
     # explains a little: rejected even though the information criterion improves
     weak = rule.assess(b=0.05, c=0.045, floor=0.005, h0=0.06, hc=0.04, n_fit=400, k=1)
     assert weak["dbic"] > rule.min_dbic and not weak["eligible"]
+    # a rival 1 % worse in RSS over 400 samples (200 effective: 2.0 < 10) cannot be told apart;
+    # one 20 % worse (36.5) can
+    assert rule.indistinguishable(rss_selected=1.0, rss_other=1.01, n_fit=400)
+    assert not rule.indistinguishable(rss_selected=1.0, rss_other=1.2, n_fit=400)
 
 
 def test_linear_screening_recovers_a_linear_effect():
@@ -138,6 +142,10 @@ def test_fit_stopped_by_its_budget_can_be_continued_to_the_optimum():
     model, h = _CurvedModel(), Hypothesis(START)
     first = fit_hypothesis(model, h, [0], max_jac=1)
     assert first.budget_hit and first.extra["njac"] <= 2
+    # one more Jacobian must improve on where the first stopped: a restart from the start
+    # would retrace the first fit exactly
+    one = fit_hypothesis(model, h, [0], max_jac=1, previous=first)
+    assert one.rss_fit < first.rss_fit
     more = fit_hypothesis(model, h, [0], max_jac=30, previous=first)
     assert not more.budget_hit, more.status
     assert more.extra["continued"] and more.extra["njac"] > first.extra["njac"]

@@ -214,7 +214,8 @@ def _report_md(d, js) -> str:
     L += ["", "Plots: `residual_time.png`, `residual_features.png`.", "",
           "## Candidate effects", "",
           "Screened linearly at the calibrated point, the best "
-          f"{d.shortlist} refitted nonlinearly (base coefficients refitted too). Rule: {d.rule}.", "",
+          f"{d.shortlist} refitted nonlinearly (base coefficients refitted too; a second start from the "
+          f"uncalibrated coefficients when the first refit is not at the floor). Rule: {d.rule}.", "",
           "| effect | score | screen RMSE | refit RMSE | held-out RMSE | dBIC | eligible | selected | refit |",
           "|---|---|---|---|---|---|---|---|---|"]
     for e in js["effects"]:

@@ -29,6 +29,8 @@ held-out RMSEs:
      at the floor on the held-out recordings (``h_0 <= min_excess f``), ``h_c <= h_0`` plus 10 %.
 3. The eligible candidate with the largest explained share is selected; if none is eligible the
    answer is that the mismatch is **unexplained** by the library (selected = []).
+4. Other eligible candidates whose fit is within ``min_dbic`` of the selected one
+   (``n_eff ln(rss_other / rss_selected) < min_dbic``) are reported as **indistinguishable**.
 """
 from __future__ import annotations
 
@@ -53,9 +55,18 @@ class SelectionRule:
     def mismatch(self, b: float, floor: float) -> bool:
         return b > self.min_excess * floor
 
+    @staticmethod
+    def _n_eff(n_fit) -> float:
+        # neighbouring feature samples share half their smoothing window
+        return max(n_fit / 2.0, 2.0)
+
+    def indistinguishable(self, *, rss_selected, rss_other, n_fit) -> bool:
+        """Whether an eligible rival fits within ``min_dbic`` of the selected candidate."""
+        return self._n_eff(n_fit) * math.log(max(rss_other, 1e-30) / max(rss_selected, 1e-30)) < self.min_dbic
+
     def assess(self, *, b, c, floor, h0, hc, n_fit, k) -> dict:
         """Scores of one refitted candidate and whether it is eligible."""
-        n_eff = max(n_fit / 2.0, 2.0)
+        n_eff = self._n_eff(n_fit)
         excess = max(b * b - floor * floor, 1e-30)
         explained = (b * b - c * c) / excess
         dbic = n_eff * math.log(b * b / max(c * c, 1e-30)) - k * math.log(n_eff)
