@@ -33,7 +33,7 @@ from .locate import locate
 from .noise import bump_noise, sensor_noise
 from .selection import SelectionRule, screen
 
-__all__ = ["Diagnosis", "FIT_TOL", "shortlist_of"]
+__all__ = ["FIT_TOL", "Diagnosis", "shortlist_of"]
 
 #: Relative ``ftol``/``xtol`` of every nonlinear fit: tighter than a typical 1e-3 so that the
 #: Jacobian budgets, not a small step on the rough (impact-bump) cost, end the fits. Not a cure
@@ -168,7 +168,9 @@ class Diagnosis:
                         x_new = xc.copy()
                         x_new[:h.n_base] += dx[:h.n_base]
                         x_new[cols] += dx[h.n_base:]
-                        best = (rss, x_new)
+                        # screen() widens zero-width bounds by 1e-12: clip back, so that a
+                        # start never asks for e.g. mu_t = -1e-12 (a ParameterError)
+                        best = (rss, np.clip(x_new, lo_h, hi_h))
                 o = out[cand.id]
                 o["gain"][name] = 1.0 - best[0] / max(rss_base, 1e-300)
                 key = "x_start" if name == "calibrated" else f"x_start_{name}"
@@ -288,7 +290,7 @@ class Diagnosis:
                                            np.concatenate([cal.x, x_unc[n0:]])],
                             "uncalibrated": [xu, np.concatenate([x_unc[:n0], xu[n0:]])]}
 
-                def best_start(fam, extra=()):
+                def best_start(fam, extra=(), h=h, families=families):
                     xs = families[fam] + list(extra)
                     rss = [float(r @ r) for r in model.residuals([h.point(x) for x in xs], fit_idx)]
                     k = int(np.argmin(rss))

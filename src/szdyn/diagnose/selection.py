@@ -5,12 +5,13 @@ Kept apart from the candidate library (:mod:`~szdyn.diagnose.candidates`) and fr
 
 Screening
 ---------
-At the calibrated base point the model speed is linearised: ``r(dx) ~ r_0 - J dx`` with the
-base coefficients' columns and the candidate's columns (each a forward difference of one
-``probe`` from "off"). ``scipy.optimize.lsq_linear`` (bounded) gives each candidate's best
-linear step on the fit recordings; candidates are ranked by the fit residual it leaves. The
-effects are strongly nonlinear near the full-slip cliff, so the ranking only shortlists: the
-shortlist is refitted nonlinearly.
+At a base point (the diagnosis uses two: the calibrated and the uncalibrated coefficients) the
+model speed is linearised: ``r(dx) ~ r_0 - J dx`` with the base coefficients' columns and the
+candidate's columns (each a forward difference of one ``probe`` from "off").
+``scipy.optimize.lsq_linear`` (bounded) gives each candidate's best linear step on the fit
+recordings; candidates are ranked by the share of the base-only linearised residual it
+removes. The effects are strongly nonlinear near the full-slip cliff, so the ranking only
+shortlists: the shortlist is refitted nonlinearly.
 
 Rule (:class:`SelectionRule`)
 -----------------------------
@@ -86,7 +87,7 @@ def screen(r0_fit, J_base_fit, J_cand_fit, lo, hi):
     Parameters
     ----------
     r0_fit : ndarray, shape (n,)
-        Residual at the calibrated point (rad/s).
+        Residual at the base point (rad/s).
     J_base_fit, J_cand_fit : ndarray, shape (n, p), (n, k)
         Model-speed sensitivities (rad/s per fit unit).
     lo, hi : ndarray, shape (p + k,)
