@@ -15,7 +15,7 @@ import pytest
 
 from szdyn.diagnose.candidates import CALIBRATED, CANDIDATES
 from szdyn.diagnose.command import choose_heldout
-from szdyn.diagnose.diagnosis import shortlist_of
+from szdyn.diagnose.diagnosis import Diagnosis, shortlist_of
 from szdyn.diagnose.engine import apply_sensor_transform, model_speed
 from szdyn.diagnose.fit import Hypothesis, fit_hypothesis
 from szdyn.diagnose.selection import SelectionRule, screen
@@ -168,6 +168,31 @@ def test_fit_stopped_by_its_budget_can_be_continued_to_the_optimum():
     assert more.rss_fit < 1e-3 * first.rss_fit
     for k, v in _CurvedModel.TARGET.items():
         assert more.values[k] == pytest.approx(v, rel=1e-3), k
+
+
+class _WantsNegativeTraction(_CurvedModel):
+    """The curved stand-in plus a residual that a negative mu_t would reduce (the real model
+    rejects mu_t < 0)."""
+
+    def residuals(self, points, which):
+        for mc, _ in points:
+            if mc.get("mu_t", 0.0) < 0:
+                raise ValueError(f"mu_t = {mc['mu_t']} < 0")
+        base = super().residuals(points, which)
+        return [np.append(r, 1.0 + mc.get("mu_t", 0.0)) for r, (mc, _) in zip(base, points)]
+
+
+def test_screened_starts_stay_inside_the_bounds():
+    # the bounded linear step lands on mu_t's lower bound 0, which screen() widens by 1e-12;
+    # a start of mu_t = -1e-12 stopped a grid case with a ParameterError
+    d = Diagnosis(candidates=["wheel_band_traction"])
+    x0 = Hypothesis(START).x_start()
+    scr = d._screen(_WantsNegativeTraction(), START, {"calibrated": x0, "uncalibrated": x0 + 0.1}, [0])
+    lo, hi = Hypothesis(START, CANDIDATES["wheel_band_traction"]).bounds()
+    for key in ("x_start", "x_start_uncalibrated"):
+        x = np.array(scr[0][key])
+        assert np.all(x >= lo) and np.all(x <= hi), (key, x)
+    assert set(scr[0]["gain"]) == {"calibrated", "uncalibrated"}
 
 
 def test_choose_heldout():
