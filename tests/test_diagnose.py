@@ -15,7 +15,7 @@ import pytest
 
 from szdyn.diagnose.candidates import CALIBRATED, CANDIDATES
 from szdyn.diagnose.command import choose_heldout
-from szdyn.diagnose.diagnosis import Diagnosis, shortlist_of
+from szdyn.diagnose.diagnosis import Diagnosis
 from szdyn.diagnose.engine import apply_sensor_transform, model_speed
 from szdyn.diagnose.fit import Hypothesis, fit_hypothesis
 from szdyn.diagnose.selection import SelectionRule, screen
@@ -122,21 +122,6 @@ def test_linear_screening_recovers_a_linear_effect():
     # a bound that forbids the needed sign leaves the residual of that column
     dx2, rss2 = screen(r0, Jb, Jc, np.r_[-np.ones(3), 0.0], np.r_[np.ones(3), 0.0])
     assert rss2 > 1.0
-
-
-def test_shortlist_takes_each_linearisation_points_leader_in_turn():
-    def row(cid, g_cal, g_unc):
-        return {"id": cid, "gain": {"calibrated": g_cal, "uncalibrated": g_unc}}
-    # slider_stribeck-11 as measured: nothing at the calibrated point, the leader at the start
-    scr = [row("drive_compliance", 0.47, 0.015), row("encoder_delay", 0.22, 0.07),
-           row("slider_stribeck", 0.001, 0.53), row("encoder_scale", 0.0, 0.25)]
-    assert shortlist_of(scr, 2) == ["drive_compliance", "slider_stribeck"]
-    assert shortlist_of(scr, 3) == ["drive_compliance", "slider_stribeck", "encoder_delay"]
-    # a shared leader is taken once; the other point then gives its runner-up
-    scr = [row("encoder_scale", 0.6, 0.69), row("slider_viscous", 0.5, 0.63), row("friction_drift", 0.1, 0.23)]
-    assert shortlist_of(scr, 2) == ["encoder_scale", "slider_viscous"]
-    assert shortlist_of(scr, 10) == ["encoder_scale", "slider_viscous", "friction_drift"]
-    assert shortlist_of(scr, 0) == []
 
 
 class _CurvedModel:

@@ -5,10 +5,8 @@ Steps (each a module of its own):
 1. calibrate the base model's coefficients on the fit recordings (:mod:`.fit`);
 2. estimate the noise floor (:mod:`.noise`);
 3. locate the mismatch in time, regime and frequency (:mod:`.locate`);
-4. screen every candidate of the library linearly at the calibrated and at the uncalibrated
-   coefficients, refit the shortlist (each point's leaders in turn) nonlinearly from starts of
-   both points, and select with :class:`~.selection.SelectionRule` (held-out data +
-   information criterion);
+4. screen every candidate of the library linearly, refit the shortlist nonlinearly, and select
+   with :class:`~.selection.SelectionRule` (held-out data + information criterion);
 5. keep the refitted model of the selected effect as the updated model.
 
 Budgets: every nonlinear fit is capped in Jacobians (``max_jac``; calibration ``2 max_jac``).
@@ -33,35 +31,13 @@ from .locate import locate
 from .noise import bump_noise, sensor_noise
 from .selection import SelectionRule, screen
 
-__all__ = ["FIT_TOL", "Diagnosis", "shortlist_of"]
+__all__ = ["FIT_TOL", "Diagnosis"]
 
 #: Relative ``ftol``/``xtol`` of every nonlinear fit: tighter than a typical 1e-3 so that the
 #: Jacobian budgets, not a small step on the rough (impact-bump) cost, end the fits. Not a cure
 #: for stalls: the friction_drift seed-11 refit reported convergence after 2 Jacobians at
 #: 0.030 rad/s with 1e-3 and with 1e-4 alike; the second start fixed that case.
 FIT_TOL = 1e-4
-
-
-def shortlist_of(screening, n: int) -> list:
-    """The ``n`` candidates to refit: the best linear gains taken in turn from each
-    linearisation point (calibrated first), skipping repeats.
-
-    Interleaving keeps each point's leader: ranking by the larger gain alone would let one
-    point's near-duplicates (e.g. encoder_scale and slider_viscous, both proportional to speed)
-    crowd out the other point's leader.
-    """
-    points = list(screening[0]["gain"]) if screening else []
-    ranked = [sorted(screening, key=lambda s: -s["gain"][p]) for p in points]
-    chosen = []
-    pos = [0] * len(ranked)
-    while len(chosen) < min(n, len(screening)):
-        for k, r in enumerate(ranked):
-            while pos[k] < len(r) and r[pos[k]]["id"] in chosen:
-                pos[k] += 1
-            if pos[k] < len(r) and len(chosen) < n:
-                chosen.append(r[pos[k]]["id"])
-                pos[k] += 1
-    return chosen
 
 
 class Diagnosis:
@@ -99,8 +75,8 @@ class Diagnosis:
     location_ : dict
         Output of :func:`.locate.locate` for the calibrated base model.
     screening_ : list of dict
-        Per candidate: linear gain at each linearisation point, linearised fit RMSE at the
-        calibrated point, linear steps (see :meth:`_screen`).
+        Per candidate: linear gain, linearised fit RMSE and linear step at the calibrated
+        point, sorted by that RMSE (see :meth:`_screen`).
     refits_ : dict of str -> dict
         Per refitted candidate: ``result`` (FitResult), ``heldout_rmse``, scores.
     selected_ : list of str
@@ -140,8 +116,9 @@ class Diagnosis:
 
         Returns one dict per candidate: ``id``; ``gain`` (point -> fraction of the base-only
         linearised RSS that the candidate's columns remove); ``rmse_linear`` (linearised fit
-        RMSE at the calibrated point); ``x_start`` / ``x_start_uncalibrated`` (the linear step
-        from each point, in the candidate hypothesis' fit coordinates).
+        RMSE at the point named ``calibrated``); ``x_start`` (calibrated) and
+        ``x_start_<point>`` (others): the linear step from each point, in the candidate
+        hypothesis' fit coordinates, inside the bounds. Sorted by ``rmse_linear``.
         """
         base_h = Hypothesis(start)
         lo_b, hi_b = base_h.bounds()
@@ -244,15 +221,11 @@ class Diagnosis:
             h0_rec = {i: rms(recs[i].y - self.base_speed_[i]) for i in held_idx}
             lap("locate")
 
-            # 4. screening (linear) on the fit recordings, at two linearisation points: the
-            # calibrated coefficients, and the uncalibrated ones (the calibration start). The
-            # calibration can bend the coefficients until a missing effect has no linear gain
-            # left at the calibrated point (measured: slider_stribeck, mu_s 0.27 -> 0.45, k_c
-            # 2x), while at the start point the same effect is the best column.
-            self.log(f"screening {len(self._library())} candidate effects at the calibrated "
-                     "and the uncalibrated coefficients")
-            self.screening_ = self._screen(model, start, {"calibrated": cal.x,
-                                                          "uncalibrated": base_h.x_start()}, fit_idx)
+            # 4. screening (linear) on the fit recordings, at the calibrated coefficients.
+            # (Also screening at the uncalibrated ones was measured and not kept: see
+            # docs/DIAGNOSIS-DESIGN.md, "Two linearisation points".)
+            self.log(f"screening {len(self._library())} candidate effects")
+            self.screening_ = self._screen(model, start, {"calibrated": cal.x}, fit_idx)
             lap("screen")
 
             # 5. nonlinear refit of the shortlist
@@ -274,43 +247,29 @@ class Diagnosis:
                          f"explains {sc['explained']:.0%}, dBIC {sc['dbic']:.1f}")
 
             library = {c.id: c for c in self._library()}
-            by_id = {s["id"]: s for s in self.screening_}
-            for cid in shortlist_of(self.screening_, n_short):
-                s, cand = by_id[cid], library[cid]
+            for s in self.screening_[:n_short]:
+                cand = library[s["id"]]
                 self.log(f"refitting base + {cand.id}")
                 h = Hypothesis(start, cand)
-                n0 = h.n_base
-                # two families of starts, one per linearisation point: the linear step itself
-                # (it may cross the full-slip cliff, where the linearisation is wrong), the
-                # point's coefficients with the candidate's screened values, and (calibrated)
-                # the calibrated base itself, so a refit cannot end worse than the base
-                xc, xu = np.array(s["x_start"]), np.array(s["x_start_uncalibrated"])
-                x_unc = h.x_start()
-                families = {"calibrated": [xc, np.concatenate([cal.x, xc[n0:]]),
-                                           np.concatenate([cal.x, x_unc[n0:]])],
-                            "uncalibrated": [xu, np.concatenate([x_unc[:n0], xu[n0:]])]}
-
-                def best_start(fam, extra=(), h=h, families=families):
-                    xs = families[fam] + list(extra)
-                    rss = [float(r @ r) for r in model.residuals([h.point(x) for x in xs], fit_idx)]
-                    k = int(np.argmin(rss))
-                    return xs[k], rss[k]
-
-                (x1, r1), (x2, r2) = best_start("calibrated"), best_start("uncalibrated")
-                first = "calibrated" if r1 <= r2 else "uncalibrated"
-                res = fit_hypothesis(model, h, fit_idx, x0=x1 if first == "calibrated" else x2,
+                # the linear step may move the base coefficients across the full-slip cliff, where
+                # the linearisation is wrong: start from the best of it, the calibrated
+                # coefficients with the candidate's screened values, and the calibrated base itself
+                x_lin = np.array(s["x_start"])
+                x_cal = np.concatenate([cal.x, x_lin[h.n_base:]])
+                x_off = np.concatenate([cal.x, h.x_start()[h.n_base:]])   # = the calibrated base
+                starts = [x_lin, x_cal, x_off]
+                rss = [float(r @ r) for r in model.residuals([h.point(x) for x in starts], fit_idx)]
+                res = fit_hypothesis(model, h, fit_idx, x0=starts[int(np.argmin(rss))],
                                      max_jac=self.max_jac, tol=FIT_TOL)
                 assess(cand, h, res)
                 at_floor = res.rmse_fit <= self.rule.min_excess * self.floor_
                 if polish > 0 and not (self.refits_[cand.id]["eligible"] and at_floor):
-                    # second start from the other family: a refit stays in the valley it starts
-                    # in (the calibrated coefficients compensate for the missing effect); the
-                    # uncalibrated family also gets the first refit's effect values
-                    other = "uncalibrated" if first == "calibrated" else "calibrated"
-                    extra = [np.concatenate([x_unc[:n0], res.x[n0:]])] if other == "uncalibrated" else []
-                    x0, _ = best_start(other, extra)
-                    self.log(f"  second start for {cand.id} from the {other} coefficients")
-                    res2 = fit_hypothesis(model, h, fit_idx, x0=x0, max_jac=self.max_jac, tol=FIT_TOL)
+                    # second start: the calibration may have moved the base coefficients to
+                    # compensate for the missing effect (a valley the refit cannot leave); start
+                    # again from the calibration's own start with the effect switched on
+                    x_nom = np.concatenate([h.x_start()[:h.n_base], res.x[h.n_base:]])
+                    self.log(f"  second start for {cand.id} from the uncalibrated coefficients")
+                    res2 = fit_hypothesis(model, h, fit_idx, x0=x_nom, max_jac=self.max_jac, tol=FIT_TOL)
                     if res2.rmse_fit < res.rmse_fit:
                         res2.extra["second_start"] = True
                         assess(cand, h, res2)

@@ -213,11 +213,9 @@ def _report_md(d, js) -> str:
         L.append(f"| {f['feature']} ({f['unit']}) | {f['r2']:.3f} | {f['suggests']} |")
     L += ["", "Plots: `residual_time.png`, `residual_features.png`.", "",
           "## Candidate effects", "",
-          "Screened linearly at the calibrated and at the uncalibrated coefficients (gain: the "
-          "fraction of the base-only linearised error a candidate removes); "
-          f"{d.shortlist} refitted nonlinearly, each point's best in turn (base coefficients refitted "
-          "too; a second start from the other point's family when the first refit is not at the "
-          f"floor). Rule: {d.rule}.", "",
+          "Screened linearly at the calibrated point, the best "
+          f"{d.shortlist} refitted nonlinearly (base coefficients refitted too; a second start from the "
+          f"uncalibrated coefficients when the first refit is not at the floor). Rule: {d.rule}.", "",
           "| effect | score | screen RMSE | refit RMSE | held-out RMSE | dBIC | eligible | selected | refit |",
           "|---|---|---|---|---|---|---|---|---|"]
     for e in js["effects"]:

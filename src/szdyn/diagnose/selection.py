@@ -5,7 +5,7 @@ Kept apart from the candidate library (:mod:`~szdyn.diagnose.candidates`) and fr
 
 Screening
 ---------
-At a base point (the diagnosis uses two: the calibrated and the uncalibrated coefficients) the
+At a base point (the diagnosis uses the calibrated coefficients) the
 model speed is linearised: ``r(dx) ~ r_0 - J dx`` with the base coefficients' columns and the
 candidate's columns (each a forward difference of one ``probe`` from "off").
 ``scipy.optimize.lsq_linear`` (bounded) gives each candidate's best linear step on the fit
