@@ -75,8 +75,8 @@ class Diagnosis:
     location_ : dict
         Output of :func:`.locate.locate` for the calibrated base model.
     screening_ : list of dict
-        Per candidate: linear gain, linearised fit RMSE and linear step at the calibrated
-        point, sorted by that RMSE (see :meth:`_screen`).
+        Per candidate: linearised fit RMSE and linear step at the calibrated point, sorted by
+        that RMSE (see :meth:`_screen`).
     refits_ : dict of str -> dict
         Per refitted candidate: ``result`` (FitResult), ``heldout_rmse``, scores.
     selected_ : list of str
@@ -111,50 +111,42 @@ class Diagnosis:
             return list(CANDIDATES.values())
         return [c if isinstance(c, Candidate) else CANDIDATES[c] for c in self.candidates]
 
-    def _screen(self, model, start: dict, points: dict, fit_idx) -> list:
-        """Linear screening of every candidate at each linearisation point.
+    def _screen(self, model, start: dict, xb, fit_idx) -> list:
+        """Linear screening of every candidate at the base point ``xb`` (base fit coordinates).
 
-        Returns one dict per candidate: ``id``; ``gain`` (point -> fraction of the base-only
-        linearised RSS that the candidate's columns remove); ``rmse_linear`` (linearised fit
-        RMSE at the point named ``calibrated``); ``x_start`` (calibrated) and
-        ``x_start_<point>`` (others): the linear step from each point, in the candidate
-        hypothesis' fit coordinates, inside the bounds. Sorted by ``rmse_linear``.
+        Returns one dict per candidate, sorted by ``rmse_linear``: ``id``, ``rmse_linear``
+        (linearised fit RMSE after the candidate's best bounded step, rad/s) and ``x_start``
+        (that step in the candidate hypothesis' fit coordinates, inside the bounds).
         """
         base_h = Hypothesis(start)
         lo_b, hi_b = base_h.bounds()
-        out = {c.id: {"id": c.id, "gain": {}} for c in self._library()}
-        for name, xb in points.items():
-            J_base, r0 = jacobian(model, base_h, xb, fit_idx)
-            _, rss_base = screen(r0, J_base, np.zeros((r0.size, 0)), lo_b - xb, hi_b - xb)
-            for cand in self._library():
-                h = Hypothesis(start, cand)
-                lo_h, hi_h = h.bounds()
-                shape = [j for j, p in enumerate(h.params) if j >= h.n_base and p.screen_at]
-                best = None
-                # shape parameters (no effect while the amplitude is 0) are tried on their grid,
-                # the amplitude columns linearised at each
-                for vals in itertools.product(*(h.params[j].screen_at for j in shape)):
-                    xc = np.concatenate([xb, h.x_start()[h.n_base:]])
-                    xc[shape] = vals
-                    cols = [j for j in range(h.n_base, len(xc)) if j not in shape]
-                    Jc, _ = jacobian(model, h, xc, fit_idx, cols=cols)
-                    dlo = np.concatenate([lo_b - xb, lo_h[cols] - xc[cols]])
-                    dhi = np.concatenate([hi_b - xb, hi_h[cols] - xc[cols]])
-                    dx, rss = screen(r0, J_base, Jc, dlo, dhi)
-                    if best is None or rss < best[0]:
-                        x_new = xc.copy()
-                        x_new[:h.n_base] += dx[:h.n_base]
-                        x_new[cols] += dx[h.n_base:]
-                        # screen() widens zero-width bounds by 1e-12: clip back, so that a
-                        # start never asks for e.g. mu_t = -1e-12 (a ParameterError)
-                        best = (rss, np.clip(x_new, lo_h, hi_h))
-                o = out[cand.id]
-                o["gain"][name] = 1.0 - best[0] / max(rss_base, 1e-300)
-                key = "x_start" if name == "calibrated" else f"x_start_{name}"
-                o[key] = best[1].tolist()
-                if name == "calibrated":
-                    o["rmse_linear"] = math.sqrt(best[0] / r0.size)
-        return sorted(out.values(), key=lambda s: s["rmse_linear"])
+        J_base, r0 = jacobian(model, base_h, xb, fit_idx)
+        out = []
+        for cand in self._library():
+            h = Hypothesis(start, cand)
+            lo_h, hi_h = h.bounds()
+            shape = [j for j, p in enumerate(h.params) if j >= h.n_base and p.screen_at]
+            best = None
+            # shape parameters (no effect while the amplitude is 0) are tried on their grid,
+            # the amplitude columns linearised at each
+            for vals in itertools.product(*(h.params[j].screen_at for j in shape)):
+                xc = np.concatenate([xb, h.x_start()[h.n_base:]])
+                xc[shape] = vals
+                cols = [j for j in range(h.n_base, len(xc)) if j not in shape]
+                Jc, _ = jacobian(model, h, xc, fit_idx, cols=cols)
+                dlo = np.concatenate([lo_b - xb, lo_h[cols] - xc[cols]])
+                dhi = np.concatenate([hi_b - xb, hi_h[cols] - xc[cols]])
+                dx, rss = screen(r0, J_base, Jc, dlo, dhi)
+                if best is None or rss < best[0]:
+                    x_new = xc.copy()
+                    x_new[:h.n_base] += dx[:h.n_base]
+                    x_new[cols] += dx[h.n_base:]
+                    # screen() widens zero-width bounds by 1e-12: clip back, so that a start
+                    # never asks for e.g. mu_t = -1e-12 (a ParameterError)
+                    best = (rss, np.clip(x_new, lo_h, hi_h))
+            out.append({"id": cand.id, "rmse_linear": math.sqrt(best[0] / r0.size),
+                        "x_start": best[1].tolist()})
+        return sorted(out, key=lambda s: s["rmse_linear"])
 
     def fit(self, recordings) -> "Diagnosis":
         """Run the diagnosis on prepared recordings (:func:`.data.prepare`).
@@ -225,7 +217,7 @@ class Diagnosis:
             # (Also screening at the uncalibrated ones was measured and not kept: see
             # docs/DIAGNOSIS-DESIGN.md, "Two linearisation points".)
             self.log(f"screening {len(self._library())} candidate effects")
-            self.screening_ = self._screen(model, start, {"calibrated": cal.x}, fit_idx)
+            self.screening_ = self._screen(model, start, cal.x, fit_idx)
             lap("screen")
 
             # 5. nonlinear refit of the shortlist

@@ -99,7 +99,7 @@ def _to_json(d) -> dict:
         excess = max(b * b - d.floor_ ** 2, 1e-30)
         item = {"id": cid, "kind": cand.kind, "selected": cid in d.selected_,
                 "expression": cand.expression, "explains": cand.explains,
-                "screen_rmse": lin, "screen_gain": s.get("gain", {}), "refitted": cid in d.refits_}
+                "screen_rmse": lin, "refitted": cid in d.refits_}
         if cid in d.refits_:
             r = d.refits_[cid]
             res = r["result"]

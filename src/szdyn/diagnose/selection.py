@@ -5,13 +5,12 @@ Kept apart from the candidate library (:mod:`~szdyn.diagnose.candidates`) and fr
 
 Screening
 ---------
-At a base point (the diagnosis uses the calibrated coefficients) the
-model speed is linearised: ``r(dx) ~ r_0 - J dx`` with the base coefficients' columns and the
-candidate's columns (each a forward difference of one ``probe`` from "off").
-``scipy.optimize.lsq_linear`` (bounded) gives each candidate's best linear step on the fit
-recordings; candidates are ranked by the share of the base-only linearised residual it
-removes. The effects are strongly nonlinear near the full-slip cliff, so the ranking only
-shortlists: the shortlist is refitted nonlinearly.
+At the calibrated base point the model speed is linearised: ``r(dx) ~ r_0 - J dx`` with the
+base coefficients' columns and the candidate's columns (each a forward difference of one
+``probe`` from "off"). ``scipy.optimize.lsq_linear`` (bounded) gives each candidate's best
+linear step on the fit recordings; candidates are ranked by the fit residual it leaves. The
+effects are strongly nonlinear near the full-slip cliff, so the ranking only shortlists: the
+shortlist is refitted nonlinearly.
 
 Rule (:class:`SelectionRule`)
 -----------------------------
