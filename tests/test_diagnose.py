@@ -13,7 +13,7 @@ import math
 import numpy as np
 import pytest
 
-from szdyn.diagnose.candidates import CALIBRATED, CANDIDATES
+from szdyn.diagnose.candidates import CALIBRATED, CANDIDATES, primary_std
 from szdyn.diagnose.command import choose_heldout
 from szdyn.diagnose.diagnosis import Diagnosis
 from szdyn.diagnose.engine import apply_sensor_transform, model_speed
@@ -57,6 +57,19 @@ def test_position_periodic_coordinates_round_trip():
     lhs = mc["a_rev"] * np.sin(q + mc["phi_rev"])
     assert np.allclose(lhs, 0.03 * np.sin(q) - 0.04 * np.cos(q))
     assert mc["a_rev"] == pytest.approx(0.05)
+
+
+def test_primary_std_by_the_delta_method():
+    per = CANDIDATES["position_periodic"]
+    v, sd = {"a_rev_s": 0.03, "a_rev_c": 0.04}, {"a_rev_s": 0.001, "a_rev_c": 0.001}
+    # a_rev = hypot: gradient (0.6, 0.8)
+    assert primary_std(per, v, sd) == pytest.approx(0.001, rel=1e-6)
+    assert primary_std(per, v, sd, corr=[[1.0, 1.0], [1.0, 1.0]]) == pytest.approx(0.0014, rel=1e-6)
+    assert primary_std(per, v, sd, corr=[[1.0, -1.0], [-1.0, 1.0]]) == pytest.approx(0.0002, rel=1e-5)
+    # k_drive = 1 / compliance
+    comp = CANDIDATES["drive_compliance"]
+    assert primary_std(comp, {"drive_compliance": 0.5}, {"drive_compliance": 0.01}) == pytest.approx(0.04, rel=1e-6)
+    assert math.isnan(primary_std(comp, {"drive_compliance": 0.5}, {}))
 
 
 def test_hypothesis_start_and_constraint():
@@ -270,6 +283,9 @@ def test_diagnosis_json_schema(viscous):
     refitted = [e for e in d["effects"] if e["refitted"]]
     assert refitted and all(" Jacobians" in e["fit_status"] for e in refitted)
     assert isinstance(d["indistinguishable"], list) and not set(d["indistinguishable"]) & set(d["selected"])
+    # the effect parameter comes with its (local) standard deviation
+    sel = next(e for e in d["effects"] if e["selected"])
+    assert sel["primary"]["std"] == pytest.approx(sel["std"]["c_visc"])
 
 
 def test_null_recordings_give_none(null):

@@ -25,7 +25,7 @@ from dataclasses import dataclass
 from collections.abc import Callable
 
 __all__ = ["FitParam", "Candidate", "CANDIDATES", "CALIBRATED", "FIXED_UNIDENTIFIED",
-           "candidate_ids"]
+           "candidate_ids", "primary_std"]
 
 
 @dataclass(frozen=True)
@@ -216,3 +216,36 @@ CANDIDATES: dict[str, Candidate] = {c.id: c for c in (
 def candidate_ids() -> tuple:
     """All candidate ids, in library order."""
     return tuple(CANDIDATES)
+
+
+def primary_std(cand: Candidate, values: dict, std: dict, corr=None) -> float:
+    """Standard deviation of the candidate's primary quantity (delta method).
+
+    Parameters
+    ----------
+    cand : Candidate
+    values, std : dict
+        The candidate's fitted coordinates and their standard deviations (own units).
+    corr : ndarray, shape (k, k), optional
+        Correlation of those coordinates, in ``cand.params`` order (default: uncorrelated, exact
+        for one-parameter candidates).
+
+    Returns
+    -------
+    float
+        NaN where a standard deviation is unknown or the primary is not finite.
+    """
+    names = [p.name for p in cand.params]
+    sd = [std.get(n, math.nan) for n in names]
+    c = [[1.0 if i == j else (0.0 if corr is None else float(corr[i][j])) for j in range(len(names))]
+         for i in range(len(names))]
+    grad = []
+    for p in cand.params:
+        # central difference of the primary (e.g. 1/compliance, hypot of the periodic pair)
+        h = 1e-6 * max(abs(values[p.name]), p.probe)
+        up, dn = dict(values), dict(values)
+        up[p.name] += h
+        dn[p.name] -= h
+        grad.append((cand.primary_of(up) - cand.primary_of(dn)) / (2 * h))
+    var = sum(grad[i] * c[i][j] * sd[i] * sd[j] * grad[j] for i in range(len(names)) for j in range(len(names)))
+    return math.sqrt(var) if math.isfinite(var) and var >= 0 else math.nan
