@@ -81,6 +81,21 @@ def test_deterministic_by_seed(tmp_path, none_dir):
     assert any(fa[k] != fb[k] for k in fa if k.endswith(".csv"))
 
 
+def test_each_recording_starts_at_its_own_wheel_phase(none_dir):
+    # a rig's wheel stops anywhere: the truth starts within one circle pitch of the fit model's
+    # default offset, at a phase of its own per recording (seeded), so that the fit cannot match
+    # the impact bumps sample by sample
+    from szdyn.defaults import default_parameters
+
+    truth = json.loads((none_dir / "truth.json").read_text())
+    p = default_parameters(QUICK_N_CIRCLES)
+    pitch = 2 * math.pi / QUICK_N_CIRCLES
+    q0 = [r["q_w0"] for r in truth["recordings"]]
+    assert len(q0) == 3 * len(QUICK_RAMPS) and len(set(q0)) == len(q0)
+    for q in q0:
+        assert p.default_wheel_offset() <= q < p.default_wheel_offset() + pitch
+
+
 @pytest.mark.parametrize("effect", sorted(EFFECTS))
 def test_each_effect_sets_what_it_documents(effect):
     e = EFFECTS[effect]

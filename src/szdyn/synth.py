@@ -15,10 +15,15 @@ For one seed the generator builds a *truth model* and logs it the way the rig wo
    ramp-and-hold (:class:`szdyn.drive.RampHold`) of ~4.5-5 s. The default ramps reach +pi,
    +2 pi and -pi rad/s (a negative ramp so that ``friction_asymmetry`` is observable; two
    held speeds so that a viscous term is separable from Coulomb friction).
-4. **Integration** with classic RK4 at a fixed step ``dt = 2e-5 s`` (default), i.e. another
+4. **Initial wheel phase.** Each recording starts from rest with the wheel at a seeded random
+   angle within one circle pitch (``q_w0 = pi / N_c + U(0, 2 pi / N_c)``), as a rig does: the
+   wheel stops wherever it stops. The fit model starts at the default half-pitch offset, so the
+   impact bumps of a recording are not reproducible sample by sample by the fit (a fixed common
+   phase would let a fit match them, another inverse crime).
+5. **Integration** with classic RK4 at a fixed step ``dt = 2e-5 s`` (default), i.e. another
    integrator and a finer step than the fit's adaptive ``dopri5``, so that a fit of the
    recordings is not an "inverse crime".
-5. **Sensor model** (:class:`szdyn.sensors.SensorModel`, defaults: 4096/2048 counts/rev,
+6. **Sensor model** (:class:`szdyn.sensors.SensorModel`, defaults: 4096/2048 counts/rev,
    0.2 count noise, 500 Hz logger with +-100 us jitter, 0.2 % dropped rows, 1 us stamps),
    seeded per recording. ``theta_w`` is the *motor-side* encoder: with ``drive_compliance``
    it reads the motor angle (the prescribed profile), not the wheel behind the compliance;
@@ -100,7 +105,7 @@ REF_LOAD_KG = 1.0
 REF_SPEED = math.pi
 
 # random-stream ids (numpy.random.default_rng([seed, id]))
-_S_PERTURB, _S_EFFECT, _S_SPLIT, _S_SENSOR = 1, 2, 3, 100
+_S_PERTURB, _S_EFFECT, _S_SPLIT, _S_SENSOR, _S_PHASE = 1, 2, 3, 100, 200
 
 
 class SynthError(UserInputError):
@@ -429,8 +434,11 @@ def synthesize(out_dir, effect: str = "none", amplitude=None, seed: int = 0,
             fname = f"load{_fmt_load(load)}kg_{ramp.name}.csv"
             t0 = time.perf_counter()
             drive = ramp.drive()
+            pitch = 2 * math.pi / n_circles
+            q_w0 = params.default_wheel_offset() + float(np.random.default_rng([seed, _S_PHASE + k]).uniform(0, pitch))
             try:
-                run = simulate(params, drive, ramp.t_end, method="rk4", dt=dt, save_dt=save_dt)
+                run = simulate(params, drive, ramp.t_end, method="rk4", dt=dt, save_dt=save_dt,
+                               x0=params.initial_state(q_w0))
             except SimulationError as exc:
                 raise SimulationError(f"truth of {fname} failed: {exc} (try a smaller dt than "
                                       f"{dt:g} s)", t=exc.t, variable=exc.variable) from exc
@@ -461,9 +469,10 @@ def synthesize(out_dir, effect: str = "none", amplitude=None, seed: int = 0,
                                omega_ref=lambda tt, d=drive: d.evaluate(tt)[1], motor_torque=torque,
                                name=fname, conditions=cond)
             write_recording(out / fname, rec)
-            slip = (o["q_w"][-1] - o["q_b"][-1]) / o["q_w"][-1] if o["q_w"][-1] != 0 else 0.0
+            dq_w, dq_b = o["q_w"][-1] - o["q_w"][0], o["q_b"][-1] - o["q_b"][0]
+            slip = (dq_w - dq_b) / dq_w if dq_w != 0 else 0.0
             recs.append({"file": fname, "load_kg": load, "ramp": ramp.name,
-                         "heldout": (i, j) in held, "rows": int(rec.t.size),
+                         "heldout": (i, j) in held, "rows": int(rec.t.size), "q_w0": q_w0,
                          "dropped_rows": rec.meta["n_dropped"],
                          "truth_final": {"q_w": float(o["q_w"][-1]), "q_b": float(o["q_b"][-1]),
                                          "u_b": float(o["u_b"][-1]), "slip_fraction": float(slip)}})
