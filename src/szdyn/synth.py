@@ -16,10 +16,10 @@ For one seed the generator builds a *truth model* and logs it the way the rig wo
    +2 pi and -pi rad/s (a negative ramp so that ``friction_asymmetry`` is observable; two
    held speeds so that a viscous term is separable from Coulomb friction).
 4. **Initial wheel phase.** Each recording starts from rest with the wheel at a seeded random
-   angle within one circle pitch (``q_w0 = pi / N_c + U(0, 2 pi / N_c)``), as a rig does: the
-   wheel stops wherever it stops. The fit model starts at the default half-pitch offset, so the
-   impact bumps of a recording are not reproducible sample by sample by the fit (a fixed common
-   phase would let a fit match them, another inverse crime).
+   angle within one circle pitch (``q_w0 = default_wheel_offset() + U(0, 2 pi / N_c)``,
+   recorded in ``truth.json``), as on a rig: the wheel stops wherever it stops. A fit model
+   starts at the default offset, so the impact bumps of a recording are not reproducible sample
+   by sample (a common phase would let a fit match them, another inverse crime).
 5. **Integration** with classic RK4 at a fixed step ``dt = 2e-5 s`` (default), i.e. another
    integrator and a finer step than the fit's adaptive ``dopri5``, so that a fit of the
    recordings is not an "inverse crime".

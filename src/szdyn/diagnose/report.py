@@ -77,6 +77,8 @@ def _status(res) -> str:
     """How a nonlinear fit ended, for the reader (converged or stopped by its budget)."""
     how = "stopped by its budget" if res.budget_hit else "converged"
     more = (", from a second start" if res.extra.get("second_start") else "") + \
+        (f", refitted from {res.extra['ablation_of']}'s coefficients (ablation)"
+         if res.extra.get("ablation_of") else "") + \
         (", continued once" if res.extra.get("continued") else "")
     return f"{how} after {res.extra['njac']} Jacobians{more}"
 
@@ -134,6 +136,7 @@ def _to_json(d) -> dict:
         "calibrated": {k: cal.values[k] for k in ("k_c", "b_c", "k_imp", "mu_s", "mu_k")},
         "calibrated_std": {k: cal.std.get(k, math.nan) for k in ("k_c", "b_c", "k_imp", "mu_s", "mu_k")},
         "calibration_status": _status(cal),
+        "ablation": d.ablation_,
         "not_identified": {k: d.recordings_[0].params[k] for k in FIXED_UNIDENTIFIED},
         "final": {"values": fin.values, "std": fin.std, "sensor": sensor},
         "fit": {"before": {"heldout_rmse": d.heldout_["before"]["heldout_rmse"],
