@@ -34,7 +34,7 @@ def measured_drive(rec: Recording, window_s: float = 0.05) -> Sampled:
 
 def simulate_against(rec: Recording, params: ParameterSet, *, method: str = "dopri5",
                      rtol: float = 1e-5, atol: float = 1e-8, dt: float = 1e-4, save_dt: float = 1e-3,
-                     window_s: float = 0.05) -> Recording:
+                     window_s: float = 0.05, q_w0: float | None = None) -> Recording:
     """The model's counterpart of ``rec``: same wheel motion, same time span, band from the model.
 
     Parameters
@@ -45,6 +45,10 @@ def simulate_against(rec: Recording, params: ParameterSet, *, method: str = "dop
         Model parameters (load already applied, e.g. by ``Manifest.parameters``).
     method, rtol, atol, dt, save_dt :
         Integrator settings (:func:`szdyn.simulate.simulate`).
+    q_w0 : float, optional
+        Initial wheel angle (rad); default the model's default offset. A rig's wheel starts at
+        an unknown phase to the circles, so the impact bumps cannot be matched sample by sample;
+        a synthetic recording's ``truth.json`` records its phase.
     window_s : float
         Window of the wheel-speed differentiation (s).
 
@@ -59,7 +63,8 @@ def simulate_against(rec: Recording, params: ParameterSet, *, method: str = "dop
 
     drive = measured_drive(rec, window_s)
     t0, t1 = float(drive.t[0]), float(drive.t[-1])
-    run = simulate(params, drive, t1, t0=t0, method=method, rtol=rtol, atol=atol, dt=dt, save_dt=save_dt)
+    run = simulate(params, drive, t1, t0=t0, method=method, rtol=rtol, atol=atol, dt=dt, save_dt=save_dt,
+                   x0=params.initial_state(q_w0))
     o = run.outputs
     if run.params["drive_mode"] == 2:
         theta_w = drive.evaluate(o["t"])[0]  # the encoder is on the motor
