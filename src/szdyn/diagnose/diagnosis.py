@@ -84,7 +84,8 @@ class Diagnosis:
     ablation_ : dict or None
         The base model refitted alone from the best eligible candidate's coefficients:
         ``candidate``, ``rmse_fit``, ``calibrated_rmse_fit`` (before) and ``adopted`` (it fitted
-        better and replaced the calibration). None when no candidate was eligible.
+        better and replaced the calibration). None when no candidate was eligible (or
+        ``polish_jac`` is 0).
     selected_ : list of str
         Selected effect ids ([] for none or unexplained).
     indistinguishable_ : list of str
