@@ -45,12 +45,12 @@ def simulate_against(rec: Recording, params: ParameterSet, *, method: str = "dop
         Model parameters (load already applied, e.g. by ``Manifest.parameters``).
     method, rtol, atol, dt, save_dt :
         Integrator settings (:func:`szdyn.simulate.simulate`).
+    window_s : float
+        Window of the wheel-speed differentiation (s).
     q_w0 : float, optional
         Initial wheel angle (rad); default the model's default offset. A rig's wheel starts at
         an unknown phase to the circles, so the impact bumps cannot be matched sample by sample;
         a synthetic recording's ``truth.json`` records its phase.
-    window_s : float
-        Window of the wheel-speed differentiation (s).
 
     Returns
     -------

@@ -213,11 +213,15 @@ class Diagnosis:
                 lap("calibrate_continued")
 
             # 3. locate (all recordings, calibrated base)
-            sp = model.speeds([base_h.point(cal.x)], all_idx)[0]
-            self.base_speed_ = dict(zip(all_idx, sp))
-            self.location_ = locate([recs[i] for i in all_idx], sp, floor=self.floor_)
-            h0 = rms(np.concatenate([recs[i].y - self.base_speed_[i] for i in held_idx])) if held_idx else math.nan
-            h0_rec = {i: rms(recs[i].y - self.base_speed_[i]) for i in held_idx}
+            def baseline():
+                """Base speeds, location and held-out RMSEs (overall, per recording) of ``cal``."""
+                sp = model.speeds([base_h.point(cal.x)], all_idx)[0]
+                self.base_speed_ = dict(zip(all_idx, sp))
+                self.location_ = locate([recs[i] for i in all_idx], sp, floor=self.floor_)
+                h0 = rms(np.concatenate([recs[i].y - self.base_speed_[i] for i in held_idx])) if held_idx else math.nan
+                return h0, {i: rms(recs[i].y - self.base_speed_[i]) for i in held_idx}
+
+            h0, h0_rec = baseline()
             lap("locate")
 
             # 4. screening (linear) on the fit recordings, at the calibrated coefficients.
@@ -304,11 +308,7 @@ class Diagnosis:
                     alt.extra["ablation_of"] = lead
                     cal = self.calibrated_ = alt
                     self.mismatch_ = self.rule.mismatch(cal.rmse_fit, self.floor_)
-                    sp = model.speeds([base_h.point(cal.x)], all_idx)[0]
-                    self.base_speed_ = dict(zip(all_idx, sp))
-                    self.location_ = locate([recs[i] for i in all_idx], sp, floor=self.floor_)
-                    h0 = rms(np.concatenate([recs[i].y - self.base_speed_[i] for i in held_idx])) if held_idx else math.nan
-                    h0_rec = {i: rms(recs[i].y - self.base_speed_[i]) for i in held_idx}
+                    h0, h0_rec = baseline()
                     self.log(f"  the base model alone reaches {cal.rmse_fit:.4g} rad/s "
                              f"({cal.rmse_fit / self.floor_:.2f}x the floor): candidates judged again")
                     for cid in list(self.refits_):
