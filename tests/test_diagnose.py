@@ -18,7 +18,8 @@ from szdyn.diagnose.command import choose_heldout
 from szdyn.diagnose.diagnosis import Diagnosis
 from szdyn.diagnose.engine import apply_sensor_transform, model_speed
 from szdyn.diagnose.fit import Hypothesis, fit_hypothesis
-from szdyn.diagnose.selection import SelectionRule, screen
+from szdyn.diagnose.locate import FEATURES
+from szdyn.diagnose.selection import SelectionRule, nominate, screen
 from szdyn.params import param_names
 from szdyn.run import main as run_main
 from szdyn.synth import EFFECTS, RampSpec, synthesize
@@ -192,6 +193,43 @@ def test_screened_starts_stay_inside_the_bounds():
     assert x[-1] == 0.0   # mu_t at its bound: the step wanted it negative
 
 
+def test_every_signature_names_a_located_feature():
+    # a misspelt feature would never be nominated, silently
+    for c in CANDIDATES.values():
+        assert c.signature and set(c.signature) <= set(FEATURES), c.id
+
+
+def test_nomination_follows_the_leading_feature_only_above_its_threshold():
+    lib = list(CANDIDATES.values())
+    fol = [{"feature": "direction", "r2": 0.8}, {"feature": "band_speed", "r2": 0.6}]
+    assert nominate(fol, lib, min_r2=0.3) == ["friction_asymmetry", "load_lift"]
+    assert nominate(fol, lib, min_r2=0.9) == []
+    # the second feature does not nominate, however high
+    assert "slider_viscous" not in nominate(fol, lib, min_r2=0.3)
+    assert nominate([{"feature": "time", "r2": 0.5}], lib, min_r2=0.3) == ["friction_drift"]
+    assert nominate([{"feature": "time", "r2": float("nan")}], lib, min_r2=0.3) == []
+    assert nominate([], lib, min_r2=0.0) == []
+
+
+def test_amplitude_starts_switch_the_effect_on_at_fractions_of_its_bounds():
+    xb = np.full(len(CALIBRATED), 0.03)
+    h = Hypothesis(START, CANDIDATES["friction_asymmetry"])
+    starts = Diagnosis._starts(h, xb, h.x_start())
+    assert sorted(x[-1] for x in starts) == pytest.approx([-0.35, -0.175, 0.175, 0.35])
+    assert all(np.array_equal(x[:h.n_base], xb) for x in starts)
+    # Stribeck: the amplitude only (v_st is a shape parameter, kept at the screened value);
+    # no probe at a zero bound (that is "off")
+    h = Hypothesis(START, CANDIDATES["slider_stribeck"])
+    x_lin = np.r_[xb, 0.01, 0.3]
+    starts = Diagnosis._starts(h, xb, x_lin)
+    assert [tuple(x[-2:]) for x in starts] == [(0.375, 0.3), (0.75, 0.3)]
+    for cid in CANDIDATES:
+        h = Hypothesis(START, CANDIDATES[cid])
+        lo, hi = h.bounds()
+        for x in Diagnosis._starts(h, xb, h.x_start()):
+            assert np.all(x >= lo) and np.all(x <= hi), cid
+
+
 def test_choose_heldout():
     assert choose_heldout(["a"]) == ()
     assert choose_heldout(["a", "b"]) == ("b",)
@@ -212,6 +250,16 @@ def test_diagnose_unknown_candidate_is_a_clear_error(tmp_path, capsys):
     rc = run_main(["diagnose", str(m), "--out", str(tmp_path / "o"), "--candidates", "slider_viscus"])
     assert rc == 2
     assert "slider_viscus" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("value", ["-0.1", "2", "nan"])
+def test_diagnose_nomination_threshold_outside_0_1_is_a_clear_error(tmp_path, capsys, value):
+    m = tmp_path / "m.toml"
+    m.write_text("")
+    rc = run_main(["diagnose", str(m), "--out", str(tmp_path / "o"), "--nominate-r2", value])
+    assert rc == 2
+    err = capsys.readouterr().err
+    assert "--nominate-r2" in err and "Traceback" not in err
 
 
 def test_diagnose_negative_polish_budget_is_a_clear_error(tmp_path, capsys):

@@ -84,6 +84,11 @@ class Candidate:
         The term as it enters the model (units in the report).
     explains : str
         The signature this term produces (what it would explain in the residuals).
+    signature : tuple of str
+        Physical features of :data:`szdyn.diagnose.locate.FEATURES` that the residual of a model
+        missing this term follows. When the calibrated model's residual follows one of them more
+        than any other, the candidate is refitted whatever its linear screening says
+        (:func:`~szdyn.diagnose.selection.nominate`).
     """
 
     id: str
@@ -94,6 +99,7 @@ class Candidate:
     primary_of: Callable
     expression: str
     explains: str
+    signature: tuple = ()
 
 
 def _lin(name):
@@ -149,7 +155,8 @@ CANDIDATES: dict[str, Candidate] = {c.id: c for c in (
         (FitParam("c_visc", "N*m*s/rad", 0.0, 0.1, 0.005),),
         _lin("c_visc"), "c_visc", lambda v: v["c_visc"],
         "tau_b += -c_visc * u_b",
-        "band-speed-proportional drag: slip grows with held speed (2 pi vs pi) beyond Coulomb"),
+        "band-speed-proportional drag: slip grows with held speed (2 pi vs pi) beyond Coulomb",
+        signature=("band_speed",)),
     Candidate(
         "slider_stribeck", "model",
         (FitParam("mu_st", "1", 0.0, 1.5, 0.1), FitParam("v_st", "rad/s", 0.05, 3.0, 0.2, start=0.5,
@@ -158,58 +165,67 @@ CANDIDATES: dict[str, Candidate] = {c.id: c for c in (
                                                       screen_at=(0.1, 0.3, 1.0, 2.5))),
         _stribeck, "mu_st", lambda v: v["mu_st"],
         "tau_b += -R_bo m_b g mu_st exp(-(u_b/v_st)^2) sign(u_b)",
-        "extra friction at low band speed: start-up lag and slow-speed slip, fading at speed"),
+        "extra friction at low band speed: start-up lag and slow-speed slip, fading at speed",
+        signature=("low_speed",)),
     Candidate(
         "friction_asymmetry", "model",
         (FitParam("fric_asym", "1", -0.7, 0.7, 0.1),),
         _lin("fric_asym"), "fric_asym", lambda v: v["fric_asym"],
         "tau_b += fric_asym sign(u_b) * tau_slider  (friction scaled by 1 + fric_asym sign(u_b))",
-        "slip differs between forward and backward runs by the same relative amount at every load"),
+        "slip differs between forward and backward runs by the same relative amount at every load",
+        signature=("direction",)),
     Candidate(
         "load_lift", "model",
         (FitParam("tau_lift", "N*m", -0.3, 0.3, 0.02),),
         _lin("tau_lift"), "tau_lift", lambda v: v["tau_lift"],
         "tau_b += -tau_lift,  tau_lift = m_lift g P_B / (2 pi)",
-        "a constant torque against extension: more slip extending, less retracting"),
+        "a constant torque against extension: more slip extending, less retracting",
+        signature=("direction", "load")),
     Candidate(
         "position_periodic", "model",
         (FitParam("a_rev_s", "N*m", -0.15, 0.15, 0.01), FitParam("a_rev_c", "N*m", -0.15, 0.15, 0.01)),
         _periodic, "a_rev", lambda v: math.hypot(v["a_rev_s"], v["a_rev_c"]),
         "tau_b += -a_rev sin(q_b + phi_rev)",
-        "residual periodic in the band angle, once per band revolution"),
+        "residual periodic in the band angle, once per band revolution",
+        signature=("sin_band_angle", "cos_band_angle")),
     Candidate(
         "friction_drift", "model",
         (FitParam("k_drift", "1/s", -0.3, 0.3, 0.02),),
         _lin("k_drift"), "k_drift", lambda v: v["k_drift"],
         "tau_b += k_drift * t * tau_slider  (slider friction scaled by 1 + k_drift t)",
-        "a residual trend within each recording (heating, wear)"),
+        "a residual trend within each recording (heating, wear)",
+        signature=("time",)),
     Candidate(
         "wheel_band_traction", "model",
         (FitParam("mu_t", "1", 0.0, 2.0, 0.1),),
         _lin("mu_t"), "mu_t", lambda v: v["mu_t"],
         "F_t = -mu_t F_n tanh(v_t / v_teps) at every roller-circle contact (tangential rubber friction)",
-        "extra traction growing with contact force: less slip at high load and in transients"),
+        "extra traction growing with contact force: less slip at high load and in transients",
+        signature=("load",)),
     Candidate(
         "drive_compliance", "model",
         (FitParam("drive_compliance", "rad/(N*m)", 0.0, 2.0, 0.1),),
         _compliance, "k_drive", lambda v: (1.0 / v["drive_compliance"] if v["drive_compliance"] > 0
                                            else math.inf),
         "tau_w = k_drive (q_m - q_w) + c_drive (u_m - u_w),  q_m the measured motor angle",
-        "wind-up between motor encoder and wheel: lag in ramps, oscillation after speed changes"),
+        "wind-up between motor encoder and wheel: lag in ramps, oscillation after speed changes",
+        signature=("band_accel",)),
     Candidate(
         "encoder_scale", "sensor",
         (FitParam("encoder_scale", "1", -0.2, 0.2, 0.01),),
         _sensor("encoder_scale_b", 1.0),
         "encoder_scale_b", lambda v: 1.0 + v["encoder_scale"],
         "theta_b,measured = (1 + encoder_scale) theta_b",
-        "band speed off by a constant factor: residual proportional to band speed"),
+        "band speed off by a constant factor: residual proportional to band speed",
+        signature=("band_speed",)),
     Candidate(
         "encoder_delay", "sensor",
         (FitParam("encoder_delay", "s", 0.0, 0.1, 0.005),),
         _sensor("encoder_delay_b"),
         "encoder_delay_b", lambda v: v["encoder_delay"],
         "theta_b,measured(t) = theta_b(t - encoder_delay)",
-        "band lags the wheel by a constant time: residual proportional to band acceleration"),
+        "band lags the wheel by a constant time: residual proportional to band acceleration",
+        signature=("band_accel",)),
 )}
 
 

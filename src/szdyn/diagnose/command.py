@@ -28,6 +28,9 @@ def _build_parser():
     ap.add_argument("--candidates", help="comma-separated effect ids to screen (default: all: "
                     + ", ".join(CANDIDATES) + ")")
     ap.add_argument("--shortlist", type=int, default=2, help="candidates refitted nonlinearly (default 2)")
+    ap.add_argument("--nominate-r2", type=float, default=0.3,
+                    help="also refit the candidates whose signature holds the feature the calibrated residual "
+                    "follows most, when it explains at least this share (R^2, 0..1; default 0.3; 1.01: never)")
     ap.add_argument("--max-jac", type=int, default=4, help="Jacobians per nonlinear fit (default 4; calibration twice)")
     ap.add_argument("--polish-jac", type=int, help="Jacobians to continue a budget-stopped calibration or "
                     "leading candidate with (default twice --max-jac; 0: never)")
@@ -57,6 +60,8 @@ def diagnose_command(argv) -> int:
     args = _build_parser().parse_args(argv)
     if args.shortlist < 1:
         raise UserInputError(f"diagnose: --shortlist must be >= 1, got {args.shortlist}")
+    if not 0.0 <= args.nominate_r2 <= 1.01:   # also refuses NaN
+        raise UserInputError(f"diagnose: --nominate-r2 must be an R^2 in 0..1 (1.01: never), got {args.nominate_r2}")
     if args.max_jac < 1:
         raise UserInputError(f"diagnose: --max-jac must be >= 1, got {args.max_jac}")
     if args.polish_jac is not None and args.polish_jac < 0:
@@ -90,7 +95,7 @@ def diagnose_command(argv) -> int:
     recs = prepare(man)
     log(f"{len(recs)} recording(s): {sum(r.role == 'fit' for r in recs)} fit, "
         f"{sum(r.role != 'fit' for r in recs)} held out")
-    d = Diagnosis(cands, shortlist=args.shortlist, max_jac=args.max_jac,
+    d = Diagnosis(cands, shortlist=args.shortlist, nominate_r2=args.nominate_r2, max_jac=args.max_jac,
                   polish_jac=args.polish_jac, workers=args.workers,
                   log=log, progress=progress).fit(recs)
     js = write_report(d, args.out)

@@ -5,7 +5,8 @@ Steps (each a module of its own):
 1. calibrate the base model's coefficients on the fit recordings (:mod:`.fit`);
 2. estimate the noise floor (:mod:`.noise`);
 3. locate the mismatch in time, regime and frequency (:mod:`.locate`);
-4. screen every candidate of the library linearly, refit the shortlist nonlinearly, refit the
+4. screen every candidate of the library linearly, add the candidates whose signature the
+   residual follows (:func:`~.selection.nominate`), refit that shortlist nonlinearly, refit the
    base model alone from the best candidate's coefficients (ablation: did the effect help, or
    only the new start?), and select with :class:`~.selection.SelectionRule` (held-out data +
    information criterion);
@@ -29,11 +30,14 @@ import numpy as np
 from .candidates import CANDIDATES, Candidate
 from .engine import FeatureModel, rms
 from .fit import Hypothesis, fit_hypothesis, jacobian
-from .locate import locate
+from .locate import follows, locate
 from .noise import bump_noise, sensor_noise
-from .selection import SelectionRule, screen
+from .selection import SelectionRule, nominate, screen
 
 __all__ = ["FIT_TOL", "Diagnosis"]
+
+#: Fractions of an effect amplitude's bound tried as refit starts (see :meth:`Diagnosis._starts`).
+AMPLITUDE_PROBES = (0.25, 0.5)
 
 #: Relative ``ftol``/``xtol`` of every nonlinear fit: tighter than a typical 1e-3 so that the
 #: Jacobian budgets, not a small step on the rough (impact-bump) cost, end the fits. Not a cure
@@ -51,7 +55,11 @@ class Diagnosis:
         The library to screen (default: all of :data:`~.candidates.CANDIDATES`).
     rule : SelectionRule, optional
     shortlist : int
-        Candidates refitted nonlinearly after the linear screening.
+        Candidates refitted nonlinearly after the linear screening (best linearised fits).
+    nominate_r2 : float or None
+        Also refit the candidates whose signature holds the physical feature that the calibrated
+        fit residual follows most, when that feature explains at least this share of it (R^2;
+        :func:`~.selection.nominate`). None: the linear screening alone decides.
     max_jac : int
         Jacobians per nonlinear fit (calibration: twice this).
     polish_jac : int, optional
@@ -79,6 +87,10 @@ class Diagnosis:
     screening_ : list of dict
         Per candidate: linearised fit RMSE and linear step at the calibrated point, sorted by
         that RMSE (see :meth:`_screen`).
+    nominated_ : dict
+        ``feature`` and ``r2``: what the calibrated fit residual follows most (fit recordings);
+        ``ids``: candidates refitted because their signature holds that feature;
+        ``added``: those of them the linear screening had not shortlisted.
     refits_ : dict of str -> dict
         Per refitted candidate: ``result`` (FitResult), ``heldout_rmse``, scores.
     ablation_ : dict or None
@@ -102,11 +114,12 @@ class Diagnosis:
     """
 
     def __init__(self, candidates=None, rule: SelectionRule | None = None, *, shortlist: int = 2,
-                 max_jac: int = 4, polish_jac: int | None = None, workers: int | None = None,
-                 log=None, progress=None):
+                 nominate_r2: float | None = 0.3, max_jac: int = 4, polish_jac: int | None = None,
+                 workers: int | None = None, log=None, progress=None):
         self.candidates = candidates
         self.rule = rule or SelectionRule()
         self.shortlist = shortlist
+        self.nominate_r2 = nominate_r2
         self.max_jac = max_jac
         self.polish_jac = polish_jac
         self.workers = workers
@@ -128,6 +141,7 @@ class Diagnosis:
         base_h = Hypothesis(start)
         lo_b, hi_b = base_h.bounds()
         J_base, r0 = jacobian(model, base_h, xb, fit_idx)
+        self._J_base = J_base   # reused to correct the base coefficients of amplitude probes
         out = []
         for cand in self._library():
             h = Hypothesis(start, cand)
@@ -154,6 +168,34 @@ class Diagnosis:
             out.append({"id": cand.id, "rmse_linear": math.sqrt(best[0] / r0.size),
                         "x_start": best[1].tolist()})
         return sorted(out, key=lambda s: s["rmse_linear"])
+
+    @staticmethod
+    def _starts(h: Hypothesis, x_base, x_lin) -> list:
+        """Refit starts with the effect switched on at finite amplitudes.
+
+        Each amplitude parameter (not a shape parameter) is set, one at a time, to each of
+        :data:`AMPLITUDE_PROBES` times each nonzero bound, the base coefficients at ``x_base``
+        and the other effect parameters at the linear step ``x_lin``. Where the calibrated model
+        sticks (or slips fully) on a recording, an effect's slope from "off" is zero there and a
+        gradient method started at "off" never switches it on; from these points it can.
+
+        Returns
+        -------
+        list of ndarray
+            Points in ``h``'s fit coordinates.
+        """
+        lo, hi = h.bounds()
+        out = []
+        for j in range(h.n_base, len(lo)):
+            if h.params[j].screen_at:
+                continue
+            for bound in (lo[j], hi[j]):
+                for f in AMPLITUDE_PROBES:
+                    if bound != 0.0:
+                        x = np.concatenate([x_base, x_lin[h.n_base:]])
+                        x[j] = f * bound
+                        out.append(x)
+        return out
 
     def fit(self, recordings) -> "Diagnosis":
         """Run the diagnosis on prepared recordings (:func:`.data.prepare`).
@@ -229,12 +271,24 @@ class Diagnosis:
             # docs/DIAGNOSIS-DESIGN.md, "Two linearisation points".)
             self.log(f"screening {len(self._library())} candidate effects")
             self.screening_ = self._screen(model, start, cal.x, fit_idx)
+            # what the fit residual follows (fit recordings only: held-out data judge, they do not
+            # choose what is tried)
+            fol = follows([recs[i] for i in fit_idx], [self.base_speed_[i] for i in fit_idx])
+            nom = nominate(fol, self._library(), min_r2=self.nominate_r2) \
+                if self.mismatch_ and self.nominate_r2 is not None else []
+            n_short = self.shortlist if self.mismatch_ else 0
+            short = [s["id"] for s in self.screening_[:n_short]]
+            self.nominated_ = {"feature": fol[0]["feature"], "r2": fol[0]["r2"], "ids": nom,
+                               "added": [k for k in nom if k not in short]}
+            short += self.nominated_["added"]
+            if self.nominated_["added"]:
+                self.log(f"the residual follows {fol[0]['feature']} (R^2 {fol[0]['r2']:.2f}): "
+                         f"also refitting {', '.join(self.nominated_['added'])}")
             lap("screen")
 
             # 5. nonlinear refit of the shortlist
             self.refits_ = {}
             self.ablation_ = None
-            n_short = self.shortlist if self.mismatch_ else 0
 
             def assess(cand, h, res):
                 hc = rms(model.residuals([h.point(res.x)], held_idx)[0]) if held_idx else math.nan
@@ -251,20 +305,38 @@ class Diagnosis:
                          f"explains {sc['explained']:.0%}, dBIC {sc['dbic']:.1f}")
 
             library = {c.id: c for c in self._library()}
-            for s in self.screening_[:n_short]:
-                cand = library[s["id"]]
+            screened = {s["id"]: s for s in self.screening_}
+            for cid in short:
+                s, cand = screened[cid], library[cid]
                 self.log(f"refitting base + {cand.id}")
                 h = Hypothesis(start, cand)
                 # the linear step may move the base coefficients across the full-slip cliff, where
                 # the linearisation is wrong: start from the best of it, the calibrated
-                # coefficients with the candidate's screened values, and the calibrated base itself
+                # coefficients with the candidate's screened values, the calibrated base itself,
+                # and the calibrated coefficients with the effect at finite amplitudes
                 x_lin = np.array(s["x_start"])
                 x_cal = np.concatenate([cal.x, x_lin[h.n_base:]])
                 x_off = np.concatenate([cal.x, h.x_start()[h.n_base:]])   # = the calibrated base
+                names = ["linear step", "calibrated + screened effect", "calibrated base"]
                 starts = [x_lin, x_cal, x_off]
+                probes = self._starts(h, cal.x, x_lin)
+                names += ["calibrated + effect amplitude probe"] * len(probes)
+                starts += probes
+                # the same probes with the base coefficients corrected linearly (the calibration
+                # compensated for the missing effect on the recordings it does not change:
+                # switching it on there must undo that compensation, e.g. mu_k for an asymmetry)
+                lo_h, hi_h = h.bounds()
+                nb = h.n_base
+                for x, r in zip(probes, model.residuals([h.point(x) for x in probes], fit_idx)):
+                    dx, _ = screen(r, self._J_base, np.zeros((r.size, 0)), lo_h[:nb] - x[:nb], hi_h[:nb] - x[:nb])
+                    xc = x.copy()
+                    xc[:nb] = np.clip(x[:nb] + dx, lo_h[:nb], hi_h[:nb])
+                    starts.append(xc)
+                    names.append("effect amplitude probe + linear base correction")
                 rss = [float(r @ r) for r in model.residuals([h.point(x) for x in starts], fit_idx)]
-                res = fit_hypothesis(model, h, fit_idx, x0=starts[int(np.argmin(rss))],
-                                     max_jac=self.max_jac, tol=FIT_TOL)
+                k0 = int(np.argmin(rss))
+                res = fit_hypothesis(model, h, fit_idx, x0=starts[k0], max_jac=self.max_jac, tol=FIT_TOL)
+                res.extra["start"] = names[k0]
                 assess(cand, h, res)
                 at_floor = res.rmse_fit <= self.rule.min_excess * self.floor_
                 if polish > 0 and not (self.refits_[cand.id]["eligible"] and at_floor):

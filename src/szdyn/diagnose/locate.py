@@ -25,7 +25,7 @@ import numpy as np
 from .. import residuals as R
 from .data import FEATURE_DT, WINDOW_S
 
-__all__ = ["locate", "feature_table", "FEATURES"]
+__all__ = ["locate", "follows", "feature_table", "FEATURES"]
 
 #: Physical features the residual is compared with: name -> (unit, what it stands for).
 FEATURES = {
@@ -87,11 +87,10 @@ def locate(recs, speeds, *, floor: float, top: int = 8) -> dict:
         regime, kind, score, mean}`` ranked by ``score = segment RMS / floor``; ``follows``:
         R^2 of the residual against each physical feature, largest first.
     """
-    per, segs, res_all = [], [], []
+    per, segs = [], []
     thin = max(1, int(round(WINDOW_S / FEATURE_DT)))
     for p, v in zip(recs, speeds):
         r = p.y - v
-        res_all.append(r)
         rm = float(np.sqrt(np.mean(r * r)))
         item = {"recording": p.name, "role": p.role, "load_kg": p.load_kg, "rmse": rm,
                 "ratio_to_floor": rm / floor if floor > 0 else math.inf}
@@ -127,9 +126,26 @@ def locate(recs, speeds, *, floor: float, top: int = 8) -> dict:
     # rank contiguous segments (time-localised) first by how far above the floor they are
     segs.sort(key=lambda s: -s["score"])
     contiguous = [s for s in segs if s["kind"] in ("regime", "direction", "time")]
-    r_all = np.concatenate(res_all)
-    ft = feature_table(recs, speeds)
-    follows = sorted(({"feature": k, "unit": FEATURES[k][0], "suggests": FEATURES[k][1],
-                       "r2": _r2(ft[k], r_all)} for k in FEATURES), key=lambda d: -d["r2"])
     return {"recordings": per, "mismatch": contiguous[:top], "segments_all": segs[:4 * top],
-            "follows": follows}
+            "follows": follows(recs, speeds)}
+
+
+def follows(recs, speeds) -> list:
+    """R^2 of the residual against each physical feature (one at a time), largest first.
+
+    Parameters
+    ----------
+    recs : list of Prepared
+    speeds : list of ndarray
+        Model band speed at each recording's ``t_feat`` (rad/s).
+
+    Returns
+    -------
+    list of dict
+        ``{feature, unit, suggests, r2}``, sorted by ``r2`` (share of the residual's energy about
+        its mean that a straight-line fit on the feature explains, 0..1).
+    """
+    r_all = np.concatenate([p.y - v for p, v in zip(recs, speeds)])
+    ft = feature_table(recs, speeds)
+    return sorted(({"feature": k, "unit": FEATURES[k][0], "suggests": FEATURES[k][1],
+                    "r2": _r2(ft[k], r_all)} for k in FEATURES), key=lambda d: -d["r2"])

@@ -76,11 +76,24 @@ def _clean(x):
 def _status(res) -> str:
     """How a nonlinear fit ended, for the reader (converged or stopped by its budget)."""
     how = "stopped by its budget" if res.budget_hit else "converged"
-    more = (", from a second start" if res.extra.get("second_start") else "") + \
+    more = (f", started from the {res.extra['start']}" if res.extra.get("start") else "") + \
+        (", from a second start" if res.extra.get("second_start") else "") + \
         (f", refitted from {res.extra['ablation_of']}'s coefficients (ablation)"
          if res.extra.get("ablation_of") else "") + \
         (", continued once" if res.extra.get("continued") else "")
     return f"{how} after {res.extra['njac']} Jacobians{more}"
+
+
+def _nominated_md(d) -> str:
+    n = d.nominated_
+    head = (f"On the fit recordings the calibrated residual follows `{n['feature']}` most "
+            f"(R^2 {n['r2']:.2f}; nomination threshold {d.nominate_r2}).")
+    if n["added"]:
+        return head + " Refitted for that too, whatever their linear screening: " + \
+            ", ".join(f"`{k}`" for k in n["added"]) + "."
+    if n["ids"]:
+        return head + " Its candidates (" + ", ".join(f"`{k}`" for k in n["ids"]) + ") were shortlisted anyway."
+    return head + " No candidate was nominated by it."
 
 
 def to_json(d) -> dict:
@@ -101,7 +114,8 @@ def _to_json(d) -> dict:
         excess = max(b * b - d.floor_ ** 2, 1e-30)
         item = {"id": cid, "kind": cand.kind, "selected": cid in d.selected_,
                 "expression": cand.expression, "explains": cand.explains,
-                "screen_rmse": lin, "refitted": cid in d.refits_}
+                "screen_rmse": lin, "refitted": cid in d.refits_,
+                "nominated": cid in d.nominated_["ids"]}
         if cid in d.refits_:
             r = d.refits_[cid]
             res = r["result"]
@@ -149,6 +163,7 @@ def _to_json(d) -> dict:
         "mismatch_significant": bool(d.mismatch_),
         "rule": d.rule.__dict__,
         "location": {"recordings": d.location_["recordings"], "follows": d.location_["follows"]},
+        "nominated": d.nominated_,
         "recordings": [{"name": r.name, "role": r.role, "load_kg": r.load_kg,
                         "t0": r.t0, "t1": r.t1, "samples": len(r.rec)} for r in d.recordings_],
         "compared": COMPARED,
@@ -223,6 +238,7 @@ def _report_md(d, js) -> str:
           "Screened linearly at the calibrated point, the best "
           f"{d.shortlist} refitted nonlinearly (base coefficients refitted too; a second start from the "
           f"uncalibrated coefficients when the first refit is not at the floor). Rule: {d.rule}.", "",
+          _nominated_md(d), "",
           "| effect | score | screen RMSE | refit RMSE | held-out RMSE | dBIC | eligible | selected | refit |",
           "|---|---|---|---|---|---|---|---|---|"]
     for e in js["effects"]:
