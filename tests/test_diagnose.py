@@ -331,6 +331,10 @@ def test_diagnosis_json_schema(viscous):
     refitted = [e for e in d["effects"] if e["refitted"]]
     assert refitted and all(" Jacobians" in e["fit_status"] for e in refitted)
     assert isinstance(d["indistinguishable"], list) and not set(d["indistinguishable"]) & set(d["selected"])
+    # what the fit residual follows, and which candidates that put on the shortlist
+    nom = d["nominated"]
+    assert nom["feature"] in FEATURES and 0.0 <= nom["r2"] <= 1.0 and set(nom["added"]) <= set(nom["ids"])
+    assert all(e["refitted"] for e in d["effects"] if e["id"] in nom["ids"])
     # the ablation (base model alone from the selected candidate's coefficients) ran and, the
     # drag being real, did not fit as well
     assert d["ablation"]["candidate"] == "slider_viscous" and not d["ablation"]["adopted"]
