@@ -17,7 +17,7 @@ from szdyn.diagnose.candidates import CALIBRATED, CANDIDATES, primary_std
 from szdyn.diagnose.command import choose_heldout
 from szdyn.diagnose.diagnosis import Diagnosis
 from szdyn.diagnose.engine import apply_sensor_transform, model_speed
-from szdyn.diagnose.fit import Hypothesis, fit_hypothesis
+from szdyn.diagnose.fit import Hypothesis, fit_hypothesis, jacobian
 from szdyn.diagnose.locate import FEATURES
 from szdyn.diagnose.selection import SelectionRule, nominate, screen
 from szdyn.params import param_names
@@ -228,6 +228,45 @@ def test_amplitude_starts_switch_the_effect_on_at_fractions_of_its_bounds():
         lo, hi = h.bounds()
         for x in Diagnosis._starts(h, xb, h.x_start()):
             assert np.all(x >= lo) and np.all(x <= hi), cid
+
+
+class _StickingBackward:
+    """Stand-in for FeatureModel: a forward run whose residual is log(friction) (truth 0.2) and a
+    backward run that sticks (no residual change) until the friction exceeds 0.28 (truth 0.3:
+    a miss of 0.2 at any friction below). Truth: mu_k 0.25, fric_asym -0.2."""
+
+    def residuals(self, points, which):
+        out = []
+        for mc, _ in points:
+            a = mc.get("fric_asym", 0.0)
+            stick = lambda f: 10.0 * max(f - 0.28, 0.0)   # noqa: E731
+            fwd = math.log(0.2 / (mc["mu_k"] * (1 + a)))
+            bwd = stick(0.3) - stick(mc["mu_k"] * (1 - a))
+            out.append(np.array([fwd, bwd] + [math.log(mc[k] / START[k]) for k in ("k_c", "b_c", "k_imp")]))
+        return out
+
+
+def test_probe_with_base_correction_finds_an_effect_the_linearisation_cannot():
+    model, d = _StickingBackward(), Diagnosis(candidates=["friction_asymmetry"])
+    xb = Hypothesis(START).x_start()
+    xb[3] = math.log(0.2 / START["mu_k"])    # calibrated on the forward run: mu_k = 0.2
+    _, r0 = jacobian(model, Hypothesis(START), xb, [0])
+    assert r0[1] == pytest.approx(0.2) and abs(r0[0]) < 1e-12
+    # linearly the asymmetry is a copy of the mu_k column on the forward run, and nothing on the
+    # stuck backward one: the screening finds no gain at all
+    (scr,) = d._screen(model, START, xb, [0])
+    assert scr["rmse_linear"] == pytest.approx(math.sqrt(float(r0 @ r0) / r0.size), rel=1e-6)
+    h = Hypothesis(START, CANDIDATES["friction_asymmetry"])
+    probes = d._probe(model, h, xb, np.array(scr["x_start"]), [0])
+    kinds = [k for k, _, _ in probes]
+    assert kinds.count("calibrated + effect amplitude probe") == 4 == len(probes) // 2
+    name, x, rss = min(probes, key=lambda t: t[2])
+    # switched on alone, the asymmetry spoils the forward run; with mu_k raised to compensate
+    # (the linear base correction) it frees the backward run
+    assert name == "effect amplitude probe + linear base correction"
+    assert x[-1] == pytest.approx(-0.175) and h.values(x)["mu_k"] > 0.2
+    assert rss < 0.6 * float(r0 @ r0)
+    assert all(r > float(r0 @ r0) for k, _, r in probes if k == "calibrated + effect amplitude probe")
 
 
 def test_choose_heldout():

@@ -31,6 +31,9 @@ def _build_parser():
     ap.add_argument("--nominate-r2", type=float, default=0.3,
                     help="also refit the candidates whose signature holds the feature the calibrated residual "
                     "follows most, when it explains at least this share (R^2, 0..1; default 0.3; 1.01: never)")
+    ap.add_argument("--no-probe-screen", action="store_true",
+                    help="do not evaluate every candidate switched on at finite amplitudes (the best of "
+                    "them, if it beats the calibrated base, is refitted)")
     ap.add_argument("--max-jac", type=int, default=4, help="Jacobians per nonlinear fit (default 4; calibration twice)")
     ap.add_argument("--polish-jac", type=int, help="Jacobians to continue a budget-stopped calibration or "
                     "leading candidate with (default twice --max-jac; 0: never)")
@@ -95,7 +98,8 @@ def diagnose_command(argv) -> int:
     recs = prepare(man)
     log(f"{len(recs)} recording(s): {sum(r.role == 'fit' for r in recs)} fit, "
         f"{sum(r.role != 'fit' for r in recs)} held out")
-    d = Diagnosis(cands, shortlist=args.shortlist, nominate_r2=args.nominate_r2, max_jac=args.max_jac,
+    d = Diagnosis(cands, shortlist=args.shortlist, nominate_r2=args.nominate_r2,
+                  probe_screen=not args.no_probe_screen, max_jac=args.max_jac,
                   polish_jac=args.polish_jac, workers=args.workers,
                   log=log, progress=progress).fit(recs)
     js = write_report(d, args.out)

@@ -60,6 +60,10 @@ class Diagnosis:
         Also refit the candidates whose signature holds the physical feature that the calibrated
         fit residual follows most, when that feature explains at least this share of it (R^2;
         :func:`~.selection.nominate`). None: the linear screening alone decides.
+    probe_screen : bool
+        Also evaluate every candidate switched on at finite amplitudes (:meth:`_probe`: model
+        runs, not a linearisation) and refit the best if it fits better than the calibrated base
+        by more than ``rule.min_dbic`` in the information criterion.
     max_jac : int
         Jacobians per nonlinear fit (calibration: twice this).
     polish_jac : int, optional
@@ -91,6 +95,9 @@ class Diagnosis:
         ``feature`` and ``r2``: what the calibrated fit residual follows most (fit recordings);
         ``ids``: candidates refitted because their signature holds that feature;
         ``added``: those of them the linear screening had not shortlisted.
+    probing_ : list of dict
+        Per candidate with amplitude probes: ``rmse_probe`` (fit RMSE of its best probe, rad/s)
+        and which kind of probe it was, sorted by that RMSE (empty when nothing is missing).
     refits_ : dict of str -> dict
         Per refitted candidate: ``result`` (FitResult), ``heldout_rmse``, scores.
     ablation_ : dict or None
@@ -114,12 +121,13 @@ class Diagnosis:
     """
 
     def __init__(self, candidates=None, rule: SelectionRule | None = None, *, shortlist: int = 2,
-                 nominate_r2: float | None = 0.3, max_jac: int = 4, polish_jac: int | None = None,
+                 nominate_r2: float | None = 0.3, probe_screen: bool = True, max_jac: int = 4, polish_jac: int | None = None,
                  workers: int | None = None, log=None, progress=None):
         self.candidates = candidates
         self.rule = rule or SelectionRule()
         self.shortlist = shortlist
         self.nominate_r2 = nominate_r2
+        self.probe_screen = probe_screen
         self.max_jac = max_jac
         self.polish_jac = polish_jac
         self.workers = workers
@@ -195,6 +203,36 @@ class Diagnosis:
                         x = np.concatenate([x_base, x_lin[h.n_base:]])
                         x[j] = f * bound
                         out.append(x)
+        return out
+
+    def _probe(self, model, h: Hypothesis, x_base, x_lin, fit_idx) -> list:
+        """The amplitude probes of :meth:`_starts` as they are and with the base coefficients
+        corrected linearly, evaluated on the fit recordings.
+
+        The calibration compensated for the missing effect on the recordings where the effect is
+        small; switching it on must undo that compensation (e.g. mu_k for an asymmetry), which
+        the base Jacobian of the screening (``_J_base``) does to first order: bounded least
+        squares of that point's residual on the base columns.
+
+        Returns
+        -------
+        list of (str, ndarray, float)
+            Name of the start, the point (fit coordinates), fit RSS ((rad/s)^2).
+        """
+        probes = self._starts(h, x_base, x_lin)
+        if not probes:
+            return []
+        lo, hi = h.bounds()
+        nb = h.n_base
+        out, corrected = [], []
+        for x, r in zip(probes, model.residuals([h.point(x) for x in probes], fit_idx)):
+            out.append(("calibrated + effect amplitude probe", x, float(r @ r)))
+            dx, _ = screen(r, self._J_base, np.zeros((r.size, 0)), lo[:nb] - x[:nb], hi[:nb] - x[:nb])
+            xc = x.copy()
+            xc[:nb] = np.clip(x[:nb] + dx, lo[:nb], hi[:nb])
+            corrected.append(xc)
+        for x, r in zip(corrected, model.residuals([h.point(x) for x in corrected], fit_idx)):
+            out.append(("effect amplitude probe + linear base correction", x, float(r @ r)))
         return out
 
     def fit(self, recordings) -> "Diagnosis":
@@ -284,6 +322,28 @@ class Diagnosis:
             if self.nominated_["added"]:
                 self.log(f"the residual follows {fol[0]['feature']} (R^2 {fol[0]['r2']:.2f}): "
                          f"also refitting {', '.join(self.nominated_['added'])}")
+            # probe screening: each candidate switched on at finite amplitudes (with and without
+            # the linear base correction), actual model runs; the best, if it beats the calibrated
+            # base by more than the information criterion's margin, is refitted too
+            self.probing_ = []
+            if self.mismatch_ and self.probe_screen:
+                for c in self._library():
+                    h = Hypothesis(start, c)
+                    x_lin = np.array(next(s["x_start"] for s in self.screening_ if s["id"] == c.id))
+                    pr = self._probe(model, h, cal.x, x_lin, fit_idx)
+                    if pr:
+                        best = min(pr, key=lambda t: t[2])
+                        self.probing_.append({"id": c.id, "rmse_probe": math.sqrt(best[2] / cal.n_fit),
+                                              "rmse_base": cal.rmse_fit, "start": best[0]})
+                self.probing_.sort(key=lambda q: q["rmse_probe"])
+                if self.probing_:
+                    top = self.probing_[0]
+                    tie = self.rule.indistinguishable(rss_selected=top["rmse_probe"] ** 2 * cal.n_fit,
+                                                      rss_other=cal.rss_fit, n_fit=cal.n_fit)
+                    if not tie and top["id"] not in short:
+                        short.append(top["id"])
+                        self.log(f"probe screening: {top['id']} switched on fits at {top['rmse_probe']:.4g} "
+                                 f"rad/s (calibrated base {cal.rmse_fit:.4g}): also refitting it")
             lap("screen")
 
             # 5. nonlinear refit of the shortlist
@@ -319,21 +379,11 @@ class Diagnosis:
                 x_off = np.concatenate([cal.x, h.x_start()[h.n_base:]])   # = the calibrated base
                 names = ["linear step", "calibrated + screened effect", "calibrated base"]
                 starts = [x_lin, x_cal, x_off]
-                probes = self._starts(h, cal.x, x_lin)
-                names += ["calibrated + effect amplitude probe"] * len(probes)
-                starts += probes
-                # the same probes with the base coefficients corrected linearly (the calibration
-                # compensated for the missing effect on the recordings it does not change:
-                # switching it on there must undo that compensation, e.g. mu_k for an asymmetry)
-                lo_h, hi_h = h.bounds()
-                nb = h.n_base
-                for x, r in zip(probes, model.residuals([h.point(x) for x in probes], fit_idx)):
-                    dx, _ = screen(r, self._J_base, np.zeros((r.size, 0)), lo_h[:nb] - x[:nb], hi_h[:nb] - x[:nb])
-                    xc = x.copy()
-                    xc[:nb] = np.clip(x[:nb] + dx, lo_h[:nb], hi_h[:nb])
-                    starts.append(xc)
-                    names.append("effect amplitude probe + linear base correction")
                 rss = [float(r @ r) for r in model.residuals([h.point(x) for x in starts], fit_idx)]
+                for name, x, r in self._probe(model, h, cal.x, x_lin, fit_idx):   # cached runs
+                    names.append(name)
+                    starts.append(x)
+                    rss.append(r)
                 k0 = int(np.argmin(rss))
                 res = fit_hypothesis(model, h, fit_idx, x0=starts[k0], max_jac=self.max_jac, tol=FIT_TOL)
                 res.extra["start"] = names[k0]

@@ -20,6 +20,7 @@ from ..io import atomic_write_text, write_json
 from ..plots import _pyplot, save_png
 from .candidates import CANDIDATES, FIXED_UNIDENTIFIED, primary_std
 from .data import FEATURE_DT, WINDOW_S
+from .diagnosis import AMPLITUDE_PROBES
 from .locate import feature_table
 
 __all__ = ["write_report", "to_json", "updated_parameters"]
@@ -96,6 +97,18 @@ def _nominated_md(d) -> str:
     return head + " No candidate was nominated by it."
 
 
+def _probing_md(d) -> str:
+    if not d.probing_:
+        return "No probe screening (nothing significant is missing, or it was switched off)."
+    top = d.probing_[0]
+    fr = " and ".join(f"{f:g}" for f in AMPLITUDE_PROBES)
+    return (f"Probe screening (each candidate switched on at {fr} of its bounds, base coefficients "
+            "as calibrated or corrected linearly; model runs): best " + ", ".join(
+                f"`{q['id']}` {_f(q['rmse_probe'])}" for q in d.probing_[:3])
+            + f" rad/s against the calibrated base's {_f(top['rmse_base'])}"
+            + (f"; `{top['id']}` was refitted." if top["id"] in d.refits_ else "."))
+
+
 def to_json(d) -> dict:
     """The diagnosis as a JSON-ready dict (NaN, e.g. no held-out recording, becomes null)."""
     return _clean(_to_json(d))
@@ -164,6 +177,7 @@ def _to_json(d) -> dict:
         "rule": d.rule.__dict__,
         "location": {"recordings": d.location_["recordings"], "follows": d.location_["follows"]},
         "nominated": d.nominated_,
+        "probing": d.probing_,
         "recordings": [{"name": r.name, "role": r.role, "load_kg": r.load_kg,
                         "t0": r.t0, "t1": r.t1, "samples": len(r.rec)} for r in d.recordings_],
         "compared": COMPARED,
@@ -238,7 +252,7 @@ def _report_md(d, js) -> str:
           "Screened linearly at the calibrated point, the best "
           f"{d.shortlist} refitted nonlinearly (base coefficients refitted too; a second start from the "
           f"uncalibrated coefficients when the first refit is not at the floor). Rule: {d.rule}.", "",
-          _nominated_md(d), "",
+          _nominated_md(d), "", _probing_md(d), "",
           "| effect | score | screen RMSE | refit RMSE | held-out RMSE | dBIC | eligible | selected | refit |",
           "|---|---|---|---|---|---|---|---|---|"]
     for e in js["effects"]:
