@@ -6,7 +6,8 @@ Steps (each a module of its own):
 2. estimate the noise floor (:mod:`.noise`);
 3. locate the mismatch in time, regime and frequency (:mod:`.locate`);
 4. screen every candidate of the library linearly, add the candidates whose signature the
-   residual follows (:func:`~.selection.nominate`), refit that shortlist nonlinearly, refit the
+   residual follows (:func:`~.selection.nominate`) and the best one switched on at finite
+   amplitudes (probe screening, :meth:`Diagnosis._probe`), refit that shortlist nonlinearly, refit the
    base model alone from the best candidate's coefficients (ablation: did the effect help, or
    only the new start?), and select with :class:`~.selection.SelectionRule` (held-out data +
    information criterion);
