@@ -360,6 +360,7 @@ class Diagnosis:
                 hc_med = h0 * float(np.median(ratios)) if held_idx else 1.0
                 sc = self.rule.assess(b=cal.rmse_fit, c=res.rmse_fit, floor=self.floor_,
                                       h0=h0 if held_idx else 1.0, hc=hc_med,
+                                      hc_all=hc if held_idx else None,
                                       n_fit=res.n_fit, k=len(cand.params))
                 self.refits_[cand.id] = {"result": res, "heldout_rmse": hc, **sc}
                 self.log(f"  {cand.id}: fit RMSE {res.rmse_fit:.4g}, held-out {hc:.4g} rad/s, "

@@ -36,7 +36,12 @@ held-out RMSEs:
      ``k`` its parameter count);
    * it generalises: ``h_c <= (1 - min_heldout_gain) h_0`` (``h_c`` here is ``h_0`` times the
      median over held-out recordings of their RMSE ratio, robust to one recording flipping regime), or, when the base model is already
-     at the floor on the held-out recordings (``h_0 <= min_excess f``), ``h_c <= h_0`` plus 10 %.
+     at the floor on the held-out recordings (``h_0 <= min_excess f``), ``h_c <= h_0`` plus 10 %;
+     and the held-out RMSE over all held-out recordings together is not worse (within the same
+     10 % in the second case). The median alone let null seed 22 name a drive compliance
+     (k_drive 4.4 N m/rad) that halved the fit RMSE, below the noise floor, by smoothing the
+     model's impact bumps: one held-out recording improved 42 %, the other got 19 % worse, the
+     median of two "improved" 12 %.
 3. The eligible candidate with the largest explained share is selected; if none is eligible the
    answer is that the mismatch is **unexplained** by the library (selected = []).
 4. Other eligible candidates whose fit is within ``min_dbic`` of the selected one
@@ -74,17 +79,21 @@ class SelectionRule:
         """Whether an eligible rival fits within ``min_dbic`` of the selected candidate."""
         return self._n_eff(n_fit) * math.log(max(rss_other, 1e-30) / max(rss_selected, 1e-30)) < self.min_dbic
 
-    def assess(self, *, b, c, floor, h0, hc, n_fit, k) -> dict:
-        """Scores of one refitted candidate and whether it is eligible."""
+    def assess(self, *, b, c, floor, h0, hc, n_fit, k, hc_all=None) -> dict:
+        """Scores of one refitted candidate and whether it is eligible.
+
+        ``hc`` is the median-based held-out RMSE, ``hc_all`` (optional) the RMSE over all
+        held-out recordings together (rad/s); see the module docstring.
+        """
         n_eff = self._n_eff(n_fit)
         excess = max(b * b - floor * floor, 1e-30)
         explained = (b * b - c * c) / excess
         dbic = n_eff * math.log(b * b / max(c * c, 1e-30)) - k * math.log(n_eff)
         gain = 1.0 - hc / h0 if h0 > 0 else 0.0
         if h0 <= self.min_excess * floor:
-            generalises = hc <= 1.1 * h0
+            generalises = hc <= 1.1 * h0 and (hc_all is None or hc_all <= 1.1 * h0)
         else:
-            generalises = gain >= self.min_heldout_gain
+            generalises = gain >= self.min_heldout_gain and (hc_all is None or hc_all <= h0)
         ok = explained >= self.min_explained and dbic > self.min_dbic and generalises
         return {"explained": float(explained), "dbic": float(dbic), "heldout_gain": float(gain),
                 "generalises": bool(generalises), "eligible": bool(ok)}
