@@ -37,7 +37,8 @@ from .selection import SelectionRule, nominate, screen
 
 __all__ = ["FIT_TOL", "Diagnosis"]
 
-#: Fractions of an effect amplitude's bound tried as refit starts (see :meth:`Diagnosis._starts`).
+#: Fractions of an effect amplitude's bound at which the probe screening and every refit try the
+#: effect switched on (see :meth:`Diagnosis._starts`).
 AMPLITUDE_PROBES = (0.25, 0.5)
 
 #: Relative ``ftol``/``xtol`` of every nonlinear fit: tighter than a typical 1e-3 so that the
@@ -122,8 +123,8 @@ class Diagnosis:
     """
 
     def __init__(self, candidates=None, rule: SelectionRule | None = None, *, shortlist: int = 2,
-                 nominate_r2: float | None = 0.3, probe_screen: bool = True, max_jac: int = 4, polish_jac: int | None = None,
-                 workers: int | None = None, log=None, progress=None):
+                 nominate_r2: float | None = 0.3, probe_screen: bool = True, max_jac: int = 4,
+                 polish_jac: int | None = None, workers: int | None = None, log=None, progress=None):
         self.candidates = candidates
         self.rule = rule or SelectionRule()
         self.shortlist = shortlist
