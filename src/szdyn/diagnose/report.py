@@ -94,6 +94,8 @@ def _nominated_md(d) -> str:
             ", ".join(f"`{k}`" for k in n["added"]) + "."
     if n["ids"]:
         return head + " Its candidates (" + ", ".join(f"`{k}`" for k in n["ids"]) + ") were shortlisted anyway."
+    if not d.mismatch_:
+        return head + " Nothing significant is missing, so nothing was nominated."
     return head + " No candidate was nominated by it."
 
 
