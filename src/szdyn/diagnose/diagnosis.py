@@ -311,6 +311,7 @@ class Diagnosis:
             # docs/DIAGNOSIS-DESIGN.md, "Two linearisation points".)
             self.log(f"screening {len(self._library())} candidate effects")
             self.screening_ = self._screen(model, start, cal.x, fit_idx)
+            screened = {s["id"]: s for s in self.screening_}
             # what the fit residual follows (fit recordings only: held-out data judge, they do not
             # choose what is tried)
             fol = follows([recs[i] for i in fit_idx], [self.base_speed_[i] for i in fit_idx])
@@ -331,7 +332,7 @@ class Diagnosis:
             if self.mismatch_ and self.probe_screen:
                 for c in self._library():
                     h = Hypothesis(start, c)
-                    x_lin = np.array(next(s["x_start"] for s in self.screening_ if s["id"] == c.id))
+                    x_lin = np.array(screened[c.id]["x_start"])
                     pr = self._probe(model, h, cal.x, x_lin, fit_idx)
                     if pr:
                         best = min(pr, key=lambda t: t[2])
@@ -368,7 +369,6 @@ class Diagnosis:
                          f"explains {sc['explained']:.0%}, dBIC {sc['dbic']:.1f}")
 
             library = {c.id: c for c in self._library()}
-            screened = {s["id"]: s for s in self.screening_}
             for cid in short:
                 s, cand = screened[cid], library[cid]
                 self.log(f"refitting base + {cand.id}")
