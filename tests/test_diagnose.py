@@ -107,6 +107,31 @@ def test_model_speed_differentiates_a_ramp_exactly():
 
 
 # ----------------------------------------------------------------------------- rule
+def test_traction_runs_are_integrated_to_convergence():
+    """Roller-contact friction (mu_t > 0) is stiff: Heun at 0.1 ms quietly loses a large part of
+    it. The fit's run must agree with RK4 at 10 us (another integrator, converged) instead."""
+    from szdyn.defaults import default_parameters
+    from szdyn.drive import RampHold
+    from szdyn.diagnose.engine import SIM_DT, _simulate
+    from szdyn.simulate import simulate
+
+    p0 = default_parameters()
+    drive, T, mu = RampHold(a=3.14, t_ramp=1.0, t_hold=0.5), 1.5, 0.3
+    p, x0 = p0.replace(mu_t=mu), p0.initial_state(None)
+
+    def qb(params, **kw):
+        q = simulate(params, drive, T, x0=x0, save_dt=SIM_DT, **kw).outputs["q_b"]
+        return q - q[0]
+
+    ref = qb(p, method="rk4", dt=1e-5)
+    effect = np.abs(ref - qb(p0, method="rk4", dt=1e-5)).max()
+    t, fit_run = _simulate((p0.to_dict(), drive, 0.0, T, {"mu_t": mu}))
+    heun_err = np.abs(qb(p, method="heun", dt=1e-4) - ref).max()
+    assert effect > 0.1                                    # rad: the effect is there to lose
+    assert heun_err > 0.2 * effect                         # the test tells a converged run apart
+    assert np.abs(fit_run - ref).max() < 0.02 * effect
+
+
 def test_rule_says_none_at_the_noise_floor_and_picks_an_explaining_candidate():
     rule = SelectionRule()
     assert not rule.mismatch(b=0.006, floor=0.005)
