@@ -106,7 +106,6 @@ def test_model_speed_differentiates_a_ramp_exactly():
     assert np.allclose(v, 3.0 * tf, rtol=1e-9, atol=1e-9)
 
 
-# ----------------------------------------------------------------------------- rule
 def test_traction_runs_are_integrated_to_convergence():
     """Roller-contact friction (mu_t > 0) is stiff: Heun at 0.1 ms quietly loses a large part of
     it. The fit's run must agree with RK4 at 10 us (another integrator, converged) instead."""
@@ -132,6 +131,7 @@ def test_traction_runs_are_integrated_to_convergence():
     assert np.abs(fit_run - ref).max() < 0.02 * effect
 
 
+# ----------------------------------------------------------------------------- rule
 def test_rule_says_none_at_the_noise_floor_and_picks_an_explaining_candidate():
     rule = SelectionRule()
     assert not rule.mismatch(b=0.006, floor=0.005)

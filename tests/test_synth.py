@@ -159,6 +159,19 @@ def test_amplitude_zero_equals_none(tmp_path, effect):
         assert effect_changes(effect2, 0.0)[1:] == ({}, {})
 
 
+def test_traction_truth_is_integrated_at_the_traction_step(tmp_path):
+    """Roller-contact friction needs RK4 at <= TRACTION_DT to converge (synth note 5): the
+    truth's step is reduced to a divisor of save_dt within it, and truth.json says so."""
+    from szdyn.synth import TRACTION_DT
+
+    synthesize(tmp_path / "t", "wheel_band_traction", amplitude=0.3, seed=11, loads_kg=(1.0,),
+               ramps=QUICK_RAMPS[:1], n_circles=QUICK_N_CIRCLES, dt=5e-5, save_dt=1e-4, verbose=False)
+    integ = json.loads((tmp_path / "t" / "truth.json").read_text())["integrator"]
+    assert integ["dt"] <= TRACTION_DT
+    k = integ["save_dt"] / integ["dt"]
+    assert abs(k - round(k)) < 1e-9
+
+
 def test_nonzero_effect_changes_recordings(tmp_path):
     kw = dict(seed=11, loads_kg=(1.0,), **QUICK)
     synthesize(tmp_path / "n", "none", **kw)

@@ -24,8 +24,8 @@ For one seed the generator builds a *truth model* and logs it the way the rig wo
    integrator and a finer step than the fit's (Heun at 0.1 ms, or adaptive ``dopri5``), so that
    a fit of the recordings is not an "inverse crime". With roller-contact friction
    (``mu_t > 0``) the step is at most ``TRACTION_DT = 1e-5 s``: coarser RK4 steps do not
-   resolve its ``tanh(v / v_teps)`` (measured, mu_t 0.28: 0.04 rad off dopri5 after 2 s at
-   20-50 us, converged at 10 us).
+   resolve its ``tanh(v / v_teps)`` (measured, mu_t 0.28, v_teps 10 mm/s: 0.04 rad off dopri5
+   after 2 s at 20-50 us, converged at 10 us).
 6. **Sensor model** (:class:`szdyn.sensors.SensorModel`, defaults: 4096/2048 counts/rev,
    0.2 count noise, 500 Hz logger with +-100 us jitter, 0.2 % dropped rows, 1 us stamps),
    seeded per recording. ``theta_w`` is the *motor-side* encoder: with ``drive_compliance``
@@ -105,9 +105,9 @@ __all__ = ["Effect", "EFFECTS", "EFFECT_IDS", "RampSpec", "DEFAULT_RAMPS", "QUIC
 PERTURBED = ("k_c", "b_c", "k_imp", "b_imp", "mu_s", "mu_k")
 #: Reference load (kg) and held wheel speed (rad/s) that define the relative amplitudes.
 REF_LOAD_KG = 1.0
+REF_SPEED = math.pi
 #: Largest RK4 step (s) of a truth with roller-contact friction (mu_t > 0); see note 5 above.
 TRACTION_DT = 1e-5
-REF_SPEED = math.pi
 
 # random-stream ids (numpy.random.default_rng([seed, id]))
 _S_PERTURB, _S_EFFECT, _S_SPLIT, _S_SENSOR, _S_PHASE = 1, 2, 3, 100, 200

@@ -11,8 +11,8 @@ that diverges is repeated with adaptive dopri5 (rtol 1e-5). Runs with roller-con
 (``mu_t > 0``, wheel_band_traction) go to dopri5 directly: its ``tanh(v / v_teps)`` is stiff at
 the contacts, and Heun at 0.1 ms does not diverge there but quietly loses most of the effect
 (measured, mu_t 0.28, v_teps 1 mm/s: band angle after 2 s 3.059 rad, 3.057 rad without
-traction, 2.850 rad converged). The synthetic recordings are integrated with RK4 (at 10 us when mu_t > 0), so
-the fit never uses the truth's integrator.
+traction, 2.850 rad converged). The synthetic recordings are integrated with RK4 (at 10 us
+when mu_t > 0), so the fit never uses the truth's integrator.
 """
 from __future__ import annotations
 
