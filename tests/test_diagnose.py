@@ -124,7 +124,7 @@ def test_traction_runs_are_integrated_to_convergence():
 
     ref = qb(p, method="rk4", dt=1e-5)
     effect = np.abs(ref - qb(p0, method="rk4", dt=1e-5)).max()
-    t, fit_run = _simulate((p0.to_dict(), drive, 0.0, T, {"mu_t": mu}))
+    _, fit_run = _simulate((p0.to_dict(), drive, 0.0, T, {"mu_t": mu}))
     heun_err = np.abs(qb(p, method="heun", dt=1e-4) - ref).max()
     assert effect > 0.1                                    # rad: the effect is there to lose
     assert heun_err > 0.2 * effect                         # the test tells a converged run apart

@@ -200,7 +200,7 @@ PARAMETER_DEFAULTS: tuple[Default, ...] = (
             "off: the thesis's central claim is transmission by normal impacts only (model-notes s.2)"),
     Default("v_teps", 1e-2, "m/s", "wheel_band_traction: regularisation speed of sign(v) ~ tanh(v/v_teps)",
             "chosen: a third of the roller surface speed (~0.03 m/s at pi rad/s), the smallest that integrates "
-            "well; measured (mu_t 0.28, 2 s): at 1 mm/s the band angle needs RK4 at 10 us to converge to 0.01 rad "
+            "well; measured (mu_t 0.28, 2 s): at 1 mm/s RK4 needs 10 us to come within 0.012 rad of dopri5 "
             "and dopri5 takes 4.2 s, at 10 mm/s 0.6 s; used only when mu_t > 0"),
     Default("k_drive", 20.0, "N*m/rad", "drive_compliance: torsional stiffness between motor and wheel (drive_mode 2)",
             "chosen: a stiff printed coupling (a 10 mm steel shaft 50 mm long is ~4e3 N m/rad); used only in drive_mode 2"),

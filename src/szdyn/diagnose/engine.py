@@ -26,7 +26,7 @@ from scipy.signal import savgol_filter
 from ..errors import SimulationError
 from .data import SIM_DT, WINDOW_S, Prepared
 
-__all__ = ["FeatureModel", "apply_sensor_transform", "model_speed"]
+__all__ = ["FeatureModel", "apply_sensor_transform", "integrators", "model_speed"]
 
 HEUN_DT = 1e-4
 _HEUN = {"method": "heun", "dt": HEUN_DT}
