@@ -261,32 +261,6 @@ def test_amplitude_starts_switch_the_effect_on_at_fractions_of_its_bounds():
             assert np.all(x >= lo) and np.all(x <= hi), cid
 
 
-def test_exchange_starts_move_the_static_excess_into_the_stribeck_peak():
-    # calibrated: mu_k 0.25 -> 0.26, mu_s 0.3 -> 0.40 (static excess 0.14 absorbed a peak)
-    h = Hypothesis(START, CANDIDATES["slider_stribeck"])
-    xb = h.x_start()[:h.n_base]
-    xb[3] = math.log(0.26 / 0.25)
-    xb[4] = math.log(0.14 / 0.05)
-    x_lin = np.r_[xb, 0.01, 0.3]
-    starts = Diagnosis._exchange_starts(h, xb, x_lin)
-    grid = CANDIDATES["slider_stribeck"].params[1].screen_at
-    assert len(starts) == 3 * len(grid)
-    for x in starts:
-        v = h.values(x)
-        # the friction at rest (mu_s + mu_st, both on the same saturation) and mu_k are kept
-        assert v["mu_s"] + v["mu_st"] == pytest.approx(0.40)
-        assert v["mu_k"] == pytest.approx(0.26) and v["v_st"] in grid
-        assert np.array_equal(x[:3], xb[:3])
-    assert sorted({round(h.values(x)["mu_st"], 12) for x in starts}) == pytest.approx([0.035, 0.07, 0.105])
-    # only candidates that declare an exchange get such starts
-    for cid, cand in CANDIDATES.items():
-        h = Hypothesis(START, cand)
-        lo, hi = h.bounds()
-        ex = Diagnosis._exchange_starts(h, xb, h.x_start())
-        assert bool(ex) == bool(cand.exchange), cid
-        assert all(np.all(x >= lo) and np.all(x <= hi) for x in ex), cid
-
-
 class _StickingBackward:
     """Stand-in for FeatureModel: a forward run whose residual is log(friction) (truth 0.2) and a
     backward run that sticks (no residual change) until the friction exceeds 0.28 (truth 0.3:

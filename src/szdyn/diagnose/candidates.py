@@ -89,13 +89,6 @@ class Candidate:
         missing this term follows. When the calibrated model's residual follows one of them more
         than any other, the candidate is refitted whatever its linear screening says
         (:func:`~szdyn.diagnose.selection.nominate`).
-    exchange : tuple of (str, str)
-        Pairs ``(amplitude, coefficient)``: the calibration of the base model alone can absorb
-        this effect's amplitude into that calibrated coefficient (a fit coordinate of
-        :data:`CALIBRATED`, e.g. a Stribeck peak into the static excess ``dmu_s``). The probe
-        screening then also tries moving fractions of the calibrated coefficient into the
-        amplitude (:meth:`~szdyn.diagnose.diagnosis.Diagnosis._starts`), so that switching the
-        effect on does not count it twice.
     """
 
     id: str
@@ -107,7 +100,6 @@ class Candidate:
     expression: str
     explains: str
     signature: tuple = ()
-    exchange: tuple = ()
 
 
 def _lin(name):
@@ -174,10 +166,7 @@ CANDIDATES: dict[str, Candidate] = {c.id: c for c in (
         _stribeck, "mu_st", lambda v: v["mu_st"],
         "tau_b += -R_bo m_b g mu_st exp(-(u_b/v_st)^2) sign(u_b)",
         "extra friction at low band speed: start-up lag and slow-speed slip, fading at speed",
-        signature=("low_speed",),
-        # at rest the peak adds to mu_s (both scale the same saturation): a base-only calibration
-        # raises mu_s by the peak (grid seed 12: mu_s 0.404 against the truth's 0.295 + 0.094)
-        exchange=(("mu_st", "dmu_s"),)),
+        signature=("low_speed",)),
     Candidate(
         "friction_asymmetry", "model",
         (FitParam("fric_asym", "1", -0.7, 0.7, 0.1),),

@@ -41,10 +41,6 @@ __all__ = ["FIT_TOL", "Diagnosis"]
 #: effect switched on (see :meth:`Diagnosis._starts`).
 AMPLITUDE_PROBES = (0.25, 0.5)
 
-#: Fractions of a calibrated coefficient that the probe screening moves into an effect amplitude
-#: the calibration can absorb (``Candidate.exchange``, see :meth:`Diagnosis._starts`).
-EXCHANGE_FRACTIONS = (0.25, 0.5, 0.75)
-
 #: Relative ``ftol``/``xtol`` of every nonlinear fit: tighter than a typical 1e-3 so that the
 #: Jacobian budgets, not a small step on the rough (impact-bump) cost, end the fits. Not a cure
 #: for stalls: the friction_drift seed-11 refit reported convergence after 2 Jacobians at
@@ -211,41 +207,9 @@ class Diagnosis:
                         out.append(x)
         return out
 
-    @staticmethod
-    def _exchange_starts(h: Hypothesis, x_base, x_lin) -> list:
-        """Starts that move part of a calibrated coefficient into an effect amplitude.
-
-        Where the candidate can be absorbed by a calibrated coefficient (``Candidate.exchange``):
-        each of :data:`EXCHANGE_FRACTIONS` of that coefficient's calibrated value (``x_base``)
-        moved into the amplitude, the coefficient lowered by as much, at every grid value of the
-        shape parameters; other effect parameters at the linear step ``x_lin``. A base-only
-        calibration of a Stribeck truth raises the static excess by the peak, and an amplitude
-        probe on top of it makes the band stick; an exchange keeps the friction at rest and
-        changes only its speed dependence.
-
-        Returns
-        -------
-        list of ndarray
-            Points in ``h``'s fit coordinates (empty without ``exchange``).
-        """
-        lo, hi = h.bounds()
-        out = []
-        shape = [j for j in range(h.n_base, len(lo)) if h.params[j].screen_at]
-        for amp, coef in (h.candidate.exchange if h.candidate is not None else ()):
-            ja = h.names.index(amp)
-            value = h.base_value(x_base, coef)
-            for f in EXCHANGE_FRACTIONS:
-                for vals in itertools.product(*(h.params[j].screen_at for j in shape)):
-                    x = h.with_base_value(np.concatenate([x_base, x_lin[h.n_base:]]), coef, (1 - f) * value)
-                    x[shape] = vals
-                    x[ja] = min(max(f * value, lo[ja]), hi[ja])
-                    out.append(x)
-        return out
-
     def _probe(self, model, h: Hypothesis, x_base, x_lin, fit_idx) -> list:
-        """The amplitude probes of :meth:`_starts` and the exchanges of :meth:`_exchange_starts`,
-        as they are and with the base coefficients corrected linearly, evaluated on the fit
-        recordings.
+        """The amplitude probes of :meth:`_starts` as they are and with the base coefficients
+        corrected linearly, evaluated on the fit recordings.
 
         The calibration compensated for the missing effect on the recordings where the effect is
         small; switching it on must undo that compensation (e.g. mu_k for an asymmetry), which
@@ -257,23 +221,20 @@ class Diagnosis:
         list of (str, ndarray, float)
             Name of the start, the point (fit coordinates), fit RSS ((rad/s)^2).
         """
-        probes = [(("calibrated + effect amplitude probe", "effect amplitude probe + linear base correction"), x)
-                  for x in self._starts(h, x_base, x_lin)]
-        probes += [(("calibrated coefficient exchanged into the effect",
-                     "exchange + linear base correction"), x) for x in self._exchange_starts(h, x_base, x_lin)]
+        probes = self._starts(h, x_base, x_lin)
         if not probes:
             return []
         lo, hi = h.bounds()
         nb = h.n_base
         out, corrected = [], []
-        for (name, x), r in zip(probes, model.residuals([h.point(x) for _, x in probes], fit_idx)):
-            out.append((name[0], x, float(r @ r)))
+        for x, r in zip(probes, model.residuals([h.point(x) for x in probes], fit_idx)):
+            out.append(("calibrated + effect amplitude probe", x, float(r @ r)))
             dx, _ = screen(r, self._J_base, np.zeros((r.size, 0)), lo[:nb] - x[:nb], hi[:nb] - x[:nb])
             xc = x.copy()
             xc[:nb] = np.clip(x[:nb] + dx, lo[:nb], hi[:nb])
-            corrected.append((name[1], xc))
-        for (name, x), r in zip(corrected, model.residuals([h.point(x) for _, x in corrected], fit_idx)):
-            out.append((name, x, float(r @ r)))
+            corrected.append(xc)
+        for x, r in zip(corrected, model.residuals([h.point(x) for x in corrected], fit_idx)):
+            out.append(("effect amplitude probe + linear base correction", x, float(r @ r)))
         return out
 
     def fit(self, recordings) -> "Diagnosis":

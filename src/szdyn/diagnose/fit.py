@@ -82,20 +82,6 @@ class Hypothesis:
             v[p.name] = float(xi)
         return v
 
-    def base_value(self, x, name: str) -> float:
-        """Value of the base fit coordinate ``name`` (e.g. ``dmu_s``) at ``x``, own units."""
-        j = self.names.index(name)
-        return self._start_log[name] * math.exp(float(x[j]))
-
-    def with_base_value(self, x, name: str, value: float) -> np.ndarray:
-        """Copy of ``x`` with the base fit coordinate ``name`` set to ``value`` (own units),
-        clipped to its bounds."""
-        j = self.names.index(name)
-        lo, hi = self.bounds()
-        out = np.array(x, dtype=float)
-        out[j] = min(max(math.log(value / self._start_log[name]), lo[j]), hi[j])
-        return out
-
     def point(self, x) -> tuple[dict, dict]:
         """``(model_changes, sensor_changes)`` at ``x``."""
         v = self.values(x)

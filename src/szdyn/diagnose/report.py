@@ -20,7 +20,7 @@ from ..io import atomic_write_text, write_json
 from ..plots import _pyplot, save_png
 from .candidates import CANDIDATES, FIXED_UNIDENTIFIED, primary_std
 from .data import FEATURE_DT, WINDOW_S
-from .diagnosis import AMPLITUDE_PROBES, EXCHANGE_FRACTIONS
+from .diagnosis import AMPLITUDE_PROBES
 from .locate import feature_table
 
 __all__ = ["write_report", "to_json", "updated_parameters"]
@@ -104,10 +104,8 @@ def _probing_md(d) -> str:
         return "No probe screening (nothing significant is missing, or it was switched off)."
     top = d.probing_[0]
     fr = " and ".join(f"{f:g}" for f in AMPLITUDE_PROBES)
-    ex = ", ".join(f"{f:g}" for f in EXCHANGE_FRACTIONS)
-    return (f"Probe screening (each candidate switched on at {fr} of its bounds; a candidate that "
-            f"the calibration can absorb also with {ex} of that calibrated coefficient moved into "
-            "it; base coefficients as calibrated or corrected linearly; model runs): best " + ", ".join(
+    return (f"Probe screening (each candidate switched on at {fr} of its bounds, base coefficients "
+            "as calibrated or corrected linearly; model runs): best " + ", ".join(
                 f"`{q['id']}` {_f(q['rmse_probe'])}" for q in d.probing_[:3])
             + f" rad/s against the calibrated base's {_f(top['rmse_base'])}"
             + (f"; `{top['id']}` was refitted." if top["id"] in d.refits_ else "."))
