@@ -411,6 +411,13 @@ def test_diagnosis_json_schema(viscous):
     # the effect parameter comes with its (local) standard deviation
     sel = next(e for e in d["effects"] if e["selected"])
     assert sel["primary"]["std"] == pytest.approx(sel["std"]["c_visc"])
+    # held-out recordings the final model misses beyond the floor are listed, and only those
+    after = d["fit"]["after"]["per_recording"]
+    beyond = {b["recording"]: b["ratio"] for b in d["heldout_beyond_floor"]}
+    for name, rmse in after.items():
+        ratio = rmse / d["noise_floor"]
+        assert (name in beyond) == (ratio > d["rule"]["min_excess"]), name
+        assert beyond.get(name, ratio) == pytest.approx(ratio)
 
 
 def test_null_recordings_give_none(null):
