@@ -197,7 +197,7 @@ def _report_md(d, js) -> str:
         L += ["**Verdict: none.** The calibrated base model reproduces the fit recordings to within the "
               f"noise floor (fit RMSE {_f(d.calibrated_.rmse_fit)} rad/s, floor {_f(d.floor_)} rad/s, "
               f"ratio {d.calibrated_.rmse_fit / d.floor_:.2f} <= {d.rule.min_excess}): nothing significant "
-              "is missing.", ""]
+              "is missing from what they show.", ""]
     elif v == "selected":
         e = CANDIDATES[d.selected_[0]]
         L += [f"**Verdict: `{e.id}`.** {e.explains}.", "", f"Term: `{e.expression}`", ""]
