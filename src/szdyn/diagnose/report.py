@@ -190,6 +190,13 @@ def _to_json(d) -> dict:
     }
 
 
+def _segments_md(segments) -> list:
+    """Markdown table rows of mismatch segments (``locate`` output)."""
+    return (["| recording | t0 (s) | t1 (s) | regime | score (RMS / floor) |", "|---|---|---|---|---|"]
+            + [f"| {m['recording']} | {m['t0']:.2f} | {m['t1']:.2f} | {m['regime']} | {m['score']:.1f} |"
+               for m in segments])
+
+
 def _report_md(d, js) -> str:
     L = ["# szdyn diagnosis", ""]
     v = d.verdict_
@@ -238,21 +245,15 @@ def _report_md(d, js) -> str:
           f"Fit RMSE {_f(d.calibrated_.rmse_fit)} rad/s ({d.calibrated_.rmse_fit / d.floor_:.2f}x the floor); "
           f"the fit {_status(d.calibrated_)}.", "",
           "## Where the mismatch is (calibrated base model)", ""]
+    held = [m for m in d.location_["mismatch"] if m["recording"] in d.heldout_beyond_floor_]
     if js["mismatch"]:
-        L += ["| recording | t0 (s) | t1 (s) | regime | score (RMS / floor) |", "|---|---|---|---|---|"]
-        for m in js["mismatch"]:
-            L.append(f"| {m['recording']} | {m['t0']:.2f} | {m['t1']:.2f} | {m['regime']} | {m['score']:.1f} |")
+        L += _segments_md(js["mismatch"])
+    elif held:
+        # the calibrated base is at the floor on the fit recordings, not on these
+        L += ["No segment of the fit recordings stands out. Segments of the held-out recordings "
+              "that the calibrated model misses:", ""] + _segments_md(held)
     else:
-        held = [m for m in d.location_["mismatch"] if m["recording"] in d.heldout_beyond_floor_]
-        if held:
-            # the calibrated base is at the floor on the fit recordings, not on these
-            L += ["No segment of the fit recordings stands out. Segments of the held-out recordings "
-                  "that the calibrated model misses:", "",
-                  "| recording | t0 (s) | t1 (s) | regime | score (RMS / floor) |", "|---|---|---|---|---|"]
-            for m in held:
-                L.append(f"| {m['recording']} | {m['t0']:.2f} | {m['t1']:.2f} | {m['regime']} | {m['score']:.1f} |")
-        else:
-            L.append("No segment stands out: the residual is at the noise floor.")
+        L.append("No segment stands out: the residual is at the noise floor.")
     L += ["", "Per recording (Ljung-Box on the residual thinned to one sample per window; "
           "cross-correlation with the wheel speed, prewhitened; spectral peaks):", "",
           "| recording | role | RMSE (rad/s) | / floor | white (p) | indep. of wheel speed (p) | peaks |",
