@@ -19,7 +19,7 @@ from szdyn.diagnose.diagnosis import Diagnosis
 from szdyn.diagnose.engine import apply_sensor_transform, model_speed
 from szdyn.diagnose.fit import Hypothesis, fit_hypothesis, jacobian
 from szdyn.diagnose.locate import FEATURES
-from szdyn.diagnose.selection import SelectionRule, nominate, screen
+from szdyn.diagnose.selection import SelectionRule, decide, nominate, screen
 from szdyn.params import param_names
 from szdyn.run import main as run_main
 from szdyn.synth import EFFECTS, RampSpec, synthesize
@@ -154,6 +154,38 @@ def test_rule_says_none_at_the_noise_floor_and_picks_an_explaining_candidate():
     # one 20 % worse (36.5) can
     assert rule.indistinguishable(rss_selected=1.0, rss_other=1.01, n_fit=400)
     assert not rule.indistinguishable(rss_selected=1.0, rss_other=1.2, n_fit=400)
+
+
+def _refit(c, b=0.05, floor=0.005, eligible=True, held=0.01, n=400):
+    """An assessed refit at fit RMSE ``c`` as :func:`decide` reads it."""
+    return {"eligible": eligible, "explained": (b * b - c * c) / (b * b - floor * floor),
+            "heldout_rmse": held, "rmse_fit": c, "rss_fit": c * c * n, "n_fit": n}
+
+
+def test_decide_names_only_an_effect_that_reaches_the_floor():
+    rule = SelectionRule()
+    floor = 0.005
+    # nothing missing: none, whatever the refits say
+    assert decide(rule, {"a": _refit(0.006)}, mismatch=False, floor=floor).verdict == "none"
+    # the eligible candidate with the largest explained share is selected; a rival 1 % worse in
+    # RSS is indistinguishable, an ineligible one is not
+    dec = decide(rule, {"a": _refit(0.006), "b": _refit(0.006 * 1.005), "c": _refit(0.0055, eligible=False)},
+                 mismatch=True, floor=floor)
+    assert (dec.verdict, dec.selected, dec.indistinguishable, dec.partial) == ("selected", ["a"], ["b"], [])
+    # out-of-sample slider_stribeck seed 13: calibrated 28x the floor, encoder_scale eligible
+    # (explains 71 %) but leaving 15x: partial, the mismatch stays unexplained
+    b = 27.8 * floor
+    partial = _refit(15.0 * floor, b=b)
+    assert partial["explained"] > rule.min_explained
+    dec = decide(rule, {"encoder_scale": partial, "slider_viscous": _refit(b, b=b, eligible=False)},
+                 mismatch=True, floor=floor)
+    assert (dec.verdict, dec.selected, dec.partial) == ("unexplained", [], ["encoder_scale"])
+    # the limit is max_remaining floors, inclusive; a partial rival does not stop a complete one
+    at = _refit(rule.max_remaining * floor, b=b)
+    dec = decide(rule, {"p": partial, "q": at}, mismatch=True, floor=floor)
+    assert (dec.verdict, dec.selected, dec.partial) == ("selected", ["q"], ["p"])
+    # no candidate at all: unexplained, nothing partial
+    assert decide(rule, {}, mismatch=True, floor=floor) == type(dec)("unexplained")
 
 
 def test_linear_screening_recovers_a_linear_effect():
@@ -401,6 +433,10 @@ def test_diagnosis_json_schema(viscous):
     refitted = [e for e in d["effects"] if e["refitted"]]
     assert refitted and all(" Jacobians" in e["fit_status"] for e in refitted)
     assert isinstance(d["indistinguishable"], list) and not set(d["indistinguishable"]) & set(d["selected"])
+    # the selected effect reaches the floor's neighbourhood; eligible ones that do not are partial
+    assert all(e["explains_mismatch"] for e in d["effects"] if e["selected"])
+    assert {p["id"] for p in d["partial"]} == {e["id"] for e in d["effects"]
+                                              if e.get("eligible") and not e["explains_mismatch"]}
     # what the fit residual follows, and which candidates that put on the shortlist
     nom = d["nominated"]
     assert nom["feature"] in FEATURES and 0.0 <= nom["r2"] <= 1.0 and set(nom["added"]) <= set(nom["ids"])

@@ -10,7 +10,8 @@ Steps (each a module of its own):
    amplitudes (probe screening, :meth:`Diagnosis._probe`), refit that shortlist nonlinearly, refit the
    base model alone from the best candidate's coefficients (ablation: did the effect help, or
    only the new start?), and select with :class:`~.selection.SelectionRule` (held-out data +
-   information criterion);
+   information criterion; an effect is named only if its refit comes within a few noise floors,
+   :func:`~.selection.decide`);
 5. keep the refitted model of the selected effect as the updated model.
 
 Budgets: every nonlinear fit is capped in Jacobians (``max_jac``; calibration ``2 max_jac``).
@@ -33,7 +34,7 @@ from .engine import FeatureModel, rms
 from .fit import Hypothesis, fit_hypothesis, jacobian
 from .locate import follows, locate
 from .noise import bump_noise, sensor_noise
-from .selection import SelectionRule, nominate, screen
+from .selection import SelectionRule, decide, nominate, screen
 
 __all__ = ["FIT_TOL", "Diagnosis"]
 
@@ -112,6 +113,9 @@ class Diagnosis:
     indistinguishable_ : list of str
         Other eligible candidates whose fit is within ``rule.min_dbic`` (in BIC) of the
         selected one: the recordings cannot tell them apart.
+    partial_ : list of str
+        Eligible candidates whose refit leaves the fit more than ``rule.max_remaining`` noise
+        floors: they reduce the mismatch without explaining it, and are not selected.
     verdict_ : str
         ``"none"``, ``"selected"`` or ``"unexplained"``.
     final_ : FitResult
@@ -446,24 +450,16 @@ class Diagnosis:
                 lap("ablation")
 
             # 6. decide
-            eligible = [k for k, v in self.refits_.items() if v["eligible"]]
-            if not self.mismatch_:
-                self.verdict_, self.selected_ = "none", []
-            elif eligible:
-                best = max(eligible, key=lambda k: (self.refits_[k]["explained"], -self.refits_[k]["heldout_rmse"]))
-                self.verdict_, self.selected_ = "selected", [best]
-            else:
-                self.verdict_, self.selected_ = "unexplained", []
-            # eligible rivals the information criterion cannot tell from the selected one (e.g.
-            # load_lift and friction_asymmetry at one load: both a constant torque against
-            # extension while the band slides); the report names them
-            self.indistinguishable_ = []
-            if self.selected_:
-                best_r = self.refits_[self.selected_[0]]["result"]
-                self.indistinguishable_ = [
-                    k for k in eligible if k != self.selected_[0] and self.rule.indistinguishable(
-                        rss_selected=best_r.rss_fit, rss_other=self.refits_[k]["result"].rss_fit,
-                        n_fit=best_r.n_fit)]
+            dec = decide(self.rule, {k: {"eligible": v["eligible"], "explained": v["explained"],
+                                         "heldout_rmse": v["heldout_rmse"], "rmse_fit": v["result"].rmse_fit,
+                                         "rss_fit": v["result"].rss_fit, "n_fit": v["result"].n_fit}
+                                     for k, v in self.refits_.items()},
+                         mismatch=self.mismatch_, floor=self.floor_)
+            self.verdict_, self.selected_ = dec.verdict, dec.selected
+            self.indistinguishable_, self.partial_ = dec.indistinguishable, dec.partial
+            for k in dec.partial:
+                self.log(f"  {k} explains {self.refits_[k]['explained']:.0%} of the excess but leaves the fit "
+                         f"{self.refits_[k]['result'].rmse_fit / self.floor_:.1f}x the floor: partial, not selected")
             self.final_ = self.refits_[self.selected_[0]]["result"] if self.selected_ else cal
             fh = self.final_.hypothesis
             after = {}

@@ -145,6 +145,7 @@ def _to_json(d) -> dict:
                                                         res.corr[res.hypothesis.n_base:, res.hypothesis.n_base:])},
                          "fit_rmse": res.rmse_fit, "heldout_rmse": r["heldout_rmse"],
                          "dbic": r["dbic"], "heldout_gain": r["heldout_gain"], "eligible": r["eligible"],
+                         "explains_mismatch": d.rule.explains_mismatch(res.rmse_fit, d.floor_),
                          "fit_status": _status(res)})
         else:
             item.update({"score": float(np.clip((b * b - lin * lin) / excess, 0, 1)) if d.mismatch_ else 0.0,
@@ -161,6 +162,8 @@ def _to_json(d) -> dict:
         "selected": list(d.selected_),
         "verdict": d.verdict_,
         "indistinguishable": list(d.indistinguishable_),
+        "partial": [{"id": k, "explained": d.refits_[k]["explained"],
+                     "fit_rmse_over_floor": d.refits_[k]["result"].rmse_fit / d.floor_} for k in d.partial_],
         "effects": effects,
         "mismatch": mism,
         "calibrated": {k: cal.values[k] for k in ("k_c", "b_c", "k_imp", "mu_s", "mu_k")},
@@ -218,6 +221,14 @@ def _report_md(d, js) -> str:
         L += ["**Verdict: unexplained.** The calibrated model misses something significant "
               f"({d.calibrated_.rmse_fit / d.floor_:.1f}x the noise floor) but no candidate of the "
               "library passed the selection rule; see the candidates table.", ""]
+        if d.partial_:
+            L += ["**Partly explained by** " + ", ".join(
+                f"`{k}` (explains {d.refits_[k]['explained']:.0%} of the excess, but leaves the fit "
+                f"{d.refits_[k]['result'].rmse_fit / d.floor_:.1f}x the floor)" for k in d.partial_)
+                + f": eligible, but an effect is named only when its refit comes within "
+                f"{d.rule.max_remaining:g}x the floor. Something else, or another form of it, is missing "
+                "too; the calibration may also have settled in a wrong valley (the updated model is "
+                "the calibrated base).", ""]
     if d.heldout_beyond_floor_:
         L += ["**Held-out recordings not reproduced:** "
               + ", ".join(f"`{k}` ({r:.1f}x the floor)" for k, r in d.heldout_beyond_floor_.items())
@@ -281,7 +292,8 @@ def _report_md(d, js) -> str:
     for e in js["effects"]:
         L.append(f"| {e['id']} | {e['score']:.2f} | {_f(e['screen_rmse'])} | {_f(e.get('fit_rmse'))} | "
                  f"{_f(e.get('heldout_rmse'))} | {_f(e.get('dbic'), '.1f')} | {e.get('eligible', '-')} | "
-                 f"{'**yes**' if e['selected'] else ''} | {e.get('fit_status', '-')} |")
+                 f"{'**yes**' if e['selected'] else ('partial' if e['id'] in d.partial_ else '')} | "
+                 f"{e.get('fit_status', '-')} |")
     L += ["", "Plot: `candidates.png`.", ""]
     if d.selected_:
         e = next(x for x in js["effects"] if x["selected"])
