@@ -49,7 +49,7 @@ held-out RMSEs:
    floor) named encoder_scale, which left the fit 15x the floor. ``max_remaining`` = 5 is the
    mismatch threshold (1.3) times how far the floor estimate itself can be off (up to 3.6x
    between the truth's and the calibrated coefficients on the grid): correctly named cases end
-   at 0.35-3.3x the floor (22 of them: 18 of the grid, 4 of out-of-sample seed 13).
+   at 0.35-3.5x the floor (26 of them: 18 of the grid, 8 of out-of-sample seed 13).
 4. The eligible candidate that explains the mismatch with the largest explained share is
    selected; if there is none the answer is that the mismatch is **unexplained** by the library
    (selected = []; partial candidates are listed).
