@@ -19,7 +19,7 @@ from szdyn.diagnose.diagnosis import Diagnosis
 from szdyn.diagnose.engine import apply_sensor_transform, model_speed
 from szdyn.diagnose.fit import Hypothesis, fit_hypothesis, jacobian
 from szdyn.diagnose.locate import FEATURES
-from szdyn.diagnose.selection import SelectionRule, decide, nominate, screen
+from szdyn.diagnose.selection import Decision, SelectionRule, decide, nominate, screen
 from szdyn.params import param_names
 from szdyn.run import main as run_main
 from szdyn.synth import EFFECTS, RampSpec, synthesize
@@ -185,7 +185,7 @@ def test_decide_names_only_an_effect_that_reaches_the_floor():
     dec = decide(rule, {"p": partial, "q": at}, mismatch=True, floor=floor)
     assert (dec.verdict, dec.selected, dec.partial) == ("selected", ["q"], ["p"])
     # no candidate at all: unexplained, nothing partial
-    assert decide(rule, {}, mismatch=True, floor=floor) == type(dec)("unexplained")
+    assert decide(rule, {}, mismatch=True, floor=floor) == Decision("unexplained")
 
 
 def test_linear_screening_recovers_a_linear_effect():

@@ -221,10 +221,10 @@ def _report_md(d, js) -> str:
         L += ["**Verdict: unexplained.** The calibrated model misses something significant "
               f"({d.calibrated_.rmse_fit / d.floor_:.1f}x the noise floor) but no candidate of the "
               "library passed the selection rule; see the candidates table.", ""]
-        if d.partial_:
+        if js["partial"]:
             L += ["**Partly explained by** " + ", ".join(
-                f"`{k}` (explains {d.refits_[k]['explained']:.0%} of the excess, but leaves the fit "
-                f"{d.refits_[k]['result'].rmse_fit / d.floor_:.1f}x the floor)" for k in d.partial_)
+                f"`{q['id']}` (explains {q['explained']:.0%} of the excess, but leaves the fit "
+                f"{q['fit_rmse_over_floor']:.1f}x the floor)" for q in js["partial"])
                 + f": eligible, but an effect is named only when its refit comes within "
                 f"{d.rule.max_remaining:g}x the floor. Something else, or another form of it, is missing "
                 "too; the calibration may also have settled in a wrong valley (the updated model is "
