@@ -332,24 +332,20 @@ def test_probe_with_base_correction_finds_an_effect_the_linearisation_cannot():
     assert all(r > float(r0 @ r0) for k, _, r in probes if k == "calibrated + effect amplitude probe")
 
 
-def test_second_start_switches_on_an_effect_the_first_refit_left_off():
-    # the first refit stayed in the calibration's valley (mu_k 0.2, asymmetry off); the second
-    # start goes back to the uncalibrated coefficients and, since "off" there still misses the
-    # stuck backward run, takes the best amplitude probe instead
+def test_probe_start_switches_on_an_effect_the_refits_left_off():
+    # the refits stayed with the asymmetry off; from the uncalibrated coefficients "off" still
+    # misses the stuck backward run, so the best amplitude probe there is the third start
     model, d = _StickingBackward(), Diagnosis(candidates=["friction_asymmetry"])
     h = Hypothesis(START, CANDIDATES["friction_asymmetry"])
-    x_refit = h.x_start()
-    x_refit[3] = math.log(0.2 / START["mu_k"])
-    x, how = d._second_start(model, h, x_refit, [0])
-    assert how == "at an amplitude probe"
-    assert np.array_equal(x[:h.n_base], h.x_start()[:h.n_base]) and x[-1] == pytest.approx(-0.175)
-    (r_off,), (r_x,) = model.residuals([h.point(np.r_[x[:h.n_base], 0.0])], [0]), model.residuals([h.point(x)], [0])
+    x_nom = h.x_start()
+    x = d._probe_start(model, h, x_nom, [0])
+    assert np.array_equal(x[:h.n_base], x_nom[:h.n_base]) and x[-1] == pytest.approx(-0.175)
+    (r_off,), (r_x,) = model.residuals([h.point(x_nom)], [0]), model.residuals([h.point(x)], [0])
     assert r_x @ r_x < 0.1 * (r_off @ r_off)
-    # an effect the first refit switched on is kept when it fits best
+    # an effect already switched on that fits better than every probe: no third start
     x_on = h.x_start()
     x_on[-1] = -0.2
-    x, how = d._second_start(model, h, x_on, [0])
-    assert how == "as refitted" and x[-1] == pytest.approx(-0.2)
+    assert d._probe_start(model, h, x_on, [0]) is None
 
 
 def test_choose_heldout():
