@@ -286,7 +286,7 @@ def _report_md(d, js) -> str:
           "Screened linearly at the calibrated point, the best "
           f"{d.shortlist} refitted nonlinearly (base coefficients refitted too; a second start from the "
           f"uncalibrated coefficients when the first refit is not at the floor, a third with the effect "
-          f"at an amplitude probe when it still is not). Rule: {d.rule}.", "",
+          f"at an amplitude probe when it still explains too little). Rule: {d.rule}.", "",
           _nominated_md(d), "", _probing_md(d), "",
           "| effect | score | screen RMSE | refit RMSE | held-out RMSE | dBIC | eligible | selected | refit |",
           "|---|---|---|---|---|---|---|---|---|"]
