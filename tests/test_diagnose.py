@@ -332,6 +332,22 @@ def test_probe_with_base_correction_finds_an_effect_the_linearisation_cannot():
     assert all(r > float(r0 @ r0) for k, _, r in probes if k == "calibrated + effect amplitude probe")
 
 
+def test_probe_start_switches_on_an_effect_the_refits_left_off():
+    # the refits stayed with the asymmetry off; from the uncalibrated coefficients "off" still
+    # misses the stuck backward run, so the best amplitude probe there is the third start
+    model, d = _StickingBackward(), Diagnosis(candidates=["friction_asymmetry"])
+    h = Hypothesis(START, CANDIDATES["friction_asymmetry"])
+    x_nom = h.x_start()
+    x = d._probe_start(model, h, x_nom, [0])
+    assert np.array_equal(x[:h.n_base], x_nom[:h.n_base]) and x[-1] == pytest.approx(-0.175)
+    (r_off,), (r_x,) = model.residuals([h.point(x_nom)], [0]), model.residuals([h.point(x)], [0])
+    assert r_x @ r_x < 0.1 * (r_off @ r_off)
+    # an effect already switched on that fits better than every probe: no third start
+    x_on = h.x_start()
+    x_on[-1] = -0.2
+    assert d._probe_start(model, h, x_on, [0]) is None
+
+
 def test_choose_heldout():
     assert choose_heldout(["a"]) == ()
     assert choose_heldout(["a", "b"]) == ("b",)

@@ -246,6 +246,31 @@ class Diagnosis:
             out.append(("effect amplitude probe + linear base correction", x, float(r @ r)))
         return out
 
+    def _probe_start(self, model, h: Hypothesis, x_nom, fit_idx):
+        """The best amplitude probe of :meth:`_starts` at the base coefficients of ``x_nom`` (the
+        second start: uncalibrated coefficients, effect as the first refit left it), if it fits
+        the fit recordings better than ``x_nom`` itself; else None.
+
+        For a first refit that left the effect off: out-of-sample position_periodic seed 13
+        (calibrated base 19x the floor, mu_k 29 % high) refitted to a_rev = 1e-4 N m from the
+        calibrated and from the uncalibrated coefficients; from the best probe the refit reached
+        the truth's a_rev (0.020 N m) within 2 %. A third start rather than a better second
+        one, because the better start does not always end better (friction_asymmetry seed 11:
+        0.0269 from the probe against 0.0181 rad/s as refitted).
+
+        Returns
+        -------
+        ndarray or None
+            Start in ``h``'s fit coordinates.
+        """
+        probes = self._starts(h, np.asarray(x_nom)[:h.n_base], x_nom)
+        if not probes:
+            return None
+        R = model.residuals([h.point(x) for x in [x_nom] + probes], fit_idx)
+        rss = [float(r @ r) for r in R]
+        k = int(np.argmin(rss[1:]))
+        return probes[k] if rss[1 + k] < rss[0] else None
+
     def fit(self, recordings) -> "Diagnosis":
         """Run the diagnosis on prepared recordings (:func:`.data.prepare`).
 
@@ -411,6 +436,20 @@ class Diagnosis:
                     if res2.rmse_fit < res.rmse_fit:
                         res2.extra["second_start"] = True
                         assess(cand, h, res2)
+                    # third start, only for an effect the refits left (nearly) off, explaining
+                    # less than the rule asks: the effect at an amplitude probe from there, when
+                    # that fits better than the effect as the first refit left it. Not for an
+                    # effect already on: a better fit before the continuation (5b) is not a better
+                    # one after it (load_lift seed 11: tau_lift 14.8 % off instead of 1.8 %)
+                    best = self.refits_[cand.id]
+                    x3 = None if best["explained"] >= self.rule.min_explained \
+                        else self._probe_start(model, h, x_nom, fit_idx)
+                    if x3 is not None:
+                        self.log(f"  third start for {cand.id}: uncalibrated coefficients, effect at an amplitude probe")
+                        res3 = fit_hypothesis(model, h, fit_idx, x0=x3, max_jac=self.max_jac, tol=FIT_TOL)
+                        if res3.rmse_fit < best["result"].rmse_fit:
+                            res3.extra["second_start"] = True
+                            assess(cand, h, res3)
             lap("refit")
 
             # 5b. continue the leading candidate if its budget, not convergence, stopped it

@@ -285,7 +285,8 @@ def _report_md(d, js) -> str:
           "## Candidate effects", "",
           "Screened linearly at the calibrated point, the best "
           f"{d.shortlist} refitted nonlinearly (base coefficients refitted too; a second start from the "
-          f"uncalibrated coefficients when the first refit is not at the floor). Rule: {d.rule}.", "",
+          f"uncalibrated coefficients when the first refit is not at the floor, a third with the effect "
+          f"at an amplitude probe when it still explains too little). Rule: {d.rule}.", "",
           _nominated_md(d), "", _probing_md(d), "",
           "| effect | score | screen RMSE | refit RMSE | held-out RMSE | dBIC | eligible | selected | refit |",
           "|---|---|---|---|---|---|---|---|---|"]
