@@ -434,7 +434,7 @@ class Diagnosis:
                     self.log(f"  second start for {cand.id} from the uncalibrated coefficients")
                     res2 = fit_hypothesis(model, h, fit_idx, x0=x_nom, max_jac=self.max_jac, tol=FIT_TOL)
                     if res2.rmse_fit < res.rmse_fit:
-                        res2.extra["second_start"] = True
+                        res2.extra["restart"] = "the uncalibrated coefficients (second start)"
                         assess(cand, h, res2)
                     # third start, only for an effect the refits left (nearly) off, explaining
                     # less than the rule asks: the effect at an amplitude probe from there, when
@@ -448,7 +448,8 @@ class Diagnosis:
                         self.log(f"  third start for {cand.id}: uncalibrated coefficients, effect at an amplitude probe")
                         res3 = fit_hypothesis(model, h, fit_idx, x0=x3, max_jac=self.max_jac, tol=FIT_TOL)
                         if res3.rmse_fit < best["result"].rmse_fit:
-                            res3.extra["second_start"] = True
+                            res3.extra["restart"] = ("the uncalibrated coefficients with the effect at an "
+                                                     "amplitude probe (third start)")
                             assess(cand, h, res3)
             lap("refit")
 

@@ -269,4 +269,4 @@ def fit_hypothesis(model: FeatureModel, hyp: Hypothesis, which, *, x0=None, max_
                      status=status,
                      extra={"njac": len(jmemo) + (k not in jmemo) + (previous.extra["njac"] if previous else 0),
                             "continued": previous is not None,
-                            "second_start": bool(previous and previous.extra.get("second_start"))})
+                            "restart": previous.extra.get("restart") if previous else None})

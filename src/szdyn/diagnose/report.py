@@ -79,7 +79,7 @@ def _status(res) -> str:
     """How a nonlinear fit ended, for the reader (converged or stopped by its budget)."""
     how = "stopped by its budget" if res.budget_hit else "converged"
     more = (f", started from the {res.extra['start']}" if res.extra.get("start") else "") + \
-        (", from a second start" if res.extra.get("second_start") else "") + \
+        (f", restarted from {res.extra['restart']}" if res.extra.get("restart") else "") + \
         (f", refitted from {res.extra['ablation_of']}'s coefficients (ablation)"
          if res.extra.get("ablation_of") else "") + \
         (", continued once" if res.extra.get("continued") else "")
