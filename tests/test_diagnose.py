@@ -184,6 +184,15 @@ def test_decide_names_only_an_effect_that_reaches_the_floor():
     at = _refit(rule.max_remaining * floor, b=b)
     dec = decide(rule, {"p": partial, "q": at}, mismatch=True, floor=floor)
     assert (dec.verdict, dec.selected, dec.partial) == ("selected", ["q"], ["p"])
+    # out-of-sample load_lift seed 14: the fit stays 21x the floor (a recording near the cliff)
+    # but the held-out recordings go from 185x to 1.9x: explained; not when the held-out
+    # recordings were within the limit already (they then show nothing), nor without them
+    lift = _refit(21.4 * floor, b=b, held=1.9 * floor)
+    dec = decide(rule, {"load_lift": lift}, mismatch=True, floor=floor, heldout_before=185 * floor)
+    assert (dec.verdict, dec.selected, dec.partial) == ("selected", ["load_lift"], [])
+    for h0 in (4.0 * floor, None, math.nan):
+        dec = decide(rule, {"load_lift": lift}, mismatch=True, floor=floor, heldout_before=h0)
+        assert (dec.verdict, dec.partial) == ("unexplained", ["load_lift"])
     # no candidate at all: unexplained, nothing partial
     assert decide(rule, {}, mismatch=True, floor=floor) == Decision("unexplained")
 

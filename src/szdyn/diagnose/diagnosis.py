@@ -115,7 +115,8 @@ class Diagnosis:
         selected one: the recordings cannot tell them apart.
     partial_ : list of str
         Eligible candidates whose refit leaves the fit more than ``rule.max_remaining`` noise
-        floors: they reduce the mismatch without explaining it, and are not selected.
+        floors (and the held-out recordings too, :meth:`~.selection.SelectionRule.explains_mismatch`):
+        they reduce the mismatch without explaining it, and are not selected.
     verdict_ : str
         ``"none"``, ``"selected"`` or ``"unexplained"``.
     final_ : FitResult
@@ -494,12 +495,14 @@ class Diagnosis:
                                          "heldout_rmse": v["heldout_rmse"], "rmse_fit": v["result"].rmse_fit,
                                          "rss_fit": v["result"].rss_fit, "n_fit": v["result"].n_fit}
                                      for k, v in self.refits_.items()},
-                         mismatch=self.mismatch_, floor=self.floor_)
+                         mismatch=self.mismatch_, floor=self.floor_,
+                         heldout_before=h0 if held_idx else None)
             self.verdict_, self.selected_ = dec.verdict, dec.selected
             self.indistinguishable_, self.partial_ = dec.indistinguishable, dec.partial
             for k in dec.partial:
                 self.log(f"  {k} explains {self.refits_[k]['explained']:.0%} of the excess but leaves the fit "
-                         f"{self.refits_[k]['result'].rmse_fit / self.floor_:.1f}x the floor: partial, not selected")
+                         f"{self.refits_[k]['result'].rmse_fit / self.floor_:.1f}x the floor (and the held-out "
+                         f"recordings beyond it): partial, not selected")
             self.final_ = self.refits_[self.selected_[0]]["result"] if self.selected_ else cal
             fh = self.final_.hypothesis
             after = {}

@@ -145,7 +145,8 @@ def _to_json(d) -> dict:
                                                         res.corr[res.hypothesis.n_base:, res.hypothesis.n_base:])},
                          "fit_rmse": res.rmse_fit, "heldout_rmse": r["heldout_rmse"],
                          "dbic": r["dbic"], "heldout_gain": r["heldout_gain"], "eligible": r["eligible"],
-                         "explains_mismatch": d.rule.explains_mismatch(res.rmse_fit, d.floor_),
+                         "explains_mismatch": d.rule.explains_mismatch(
+                             res.rmse_fit, d.floor_, h0=d.heldout_["before"]["heldout_rmse"], hc=r["heldout_rmse"]),
                          "fit_status": _status(res)})
         else:
             item.update({"score": float(np.clip((b * b - lin * lin) / excess, 0, 1)) if d.mismatch_ else 0.0,
@@ -226,7 +227,8 @@ def _report_md(d, js) -> str:
                 f"`{q['id']}` (explains {q['explained']:.0%} of the excess, but leaves the fit "
                 f"{q['fit_rmse_over_floor']:.1f}x the floor)" for q in js["partial"])
                 + f": eligible, but an effect is named only when its refit comes within "
-                f"{d.rule.max_remaining:g}x the floor. Something else, or another form of it, is missing "
+                f"{d.rule.max_remaining:g}x the floor on the fit recordings or on held-out ones the "
+                "calibrated model missed by more. Something else, or another form of it, is missing "
                 "too; the calibration may also have settled in a wrong valley (the updated model is "
                 "the calibrated base).", ""]
     if d.heldout_beyond_floor_:
