@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import json
 import math
+from argparse import Namespace
+from dataclasses import dataclass
 
 import numpy as np
 import pytest
@@ -20,6 +22,7 @@ from szdyn.diagnose.engine import apply_sensor_transform, model_speed
 from szdyn.diagnose.fit import Hypothesis, fit_hypothesis, jacobian
 from szdyn.diagnose.locate import FEATURES
 from szdyn.diagnose.selection import Decision, SelectionRule, decide, nominate, screen
+from szdyn.diagnose.split import exchange_pairs, exchanged
 from szdyn.params import param_names
 from szdyn.run import main as run_main
 from szdyn.synth import EFFECTS, RampSpec, synthesize
@@ -361,6 +364,62 @@ def test_choose_heldout():
     assert choose_heldout(["a"]) == ()
     assert choose_heldout(["a", "b"]) == ("b",)
     assert choose_heldout(list("abcdef")) == ("b", "e")
+
+
+@dataclass
+class _Rec:
+    """What the split exchange reads of a prepared recording."""
+    name: str
+    role: str
+    load_kg: float
+    omega_w: np.ndarray
+
+
+def _runs():
+    up, down, fast = np.full(5, math.pi), np.full(5, -math.pi), np.full(5, 2 * math.pi)
+    return [_Rec("a_up", "fit", 0.5, up), _Rec("a_down", "fit", 0.5, down), _Rec("b_up", "fit", 1.0, up),
+            _Rec("b_fast", "fit", 1.0, fast), _Rec("a_fast", "heldout", 0.5, fast),
+            _Rec("b_down", "heldout", 1.0, down)]
+
+
+def test_exchange_pairs_hold_out_a_run_of_the_same_kind_at_another_load():
+    recs = _runs()
+    # same direction and speed, other load; then the nearest speed
+    assert exchange_pairs(recs, ["b_down"]) == {"b_down": "a_down"}
+    assert exchange_pairs(recs, ["a_fast", "b_down"]) == {"a_fast": "b_fast", "b_down": "a_down"}
+    new = exchanged(recs, {"b_down": "a_down"})
+    assert [(r.name, r.role) for r in new] == [("a_up", "fit"), ("b_up", "fit"), ("b_fast", "fit"),
+                                               ("b_down", "fit"), ("a_down", "heldout"), ("a_fast", "heldout")]
+    # a fit recording is used once, and one always stays fitted
+    two = [recs[0], recs[1], recs[4], recs[5]]
+    assert exchange_pairs(two, ["a_fast", "b_down"]) == {"a_fast": "a_up"}
+
+
+class _ScriptedDiagnosis(Diagnosis):
+    """A Diagnosis whose passes return scripted answers: (verdict, held-out ratios) per pass."""
+
+    def __init__(self, script, **kw):
+        super().__init__(**kw)
+        self.script, self.seen = list(script), []
+
+    def _fit_pass(self, recs):
+        self.seen.append({r.name for r in recs if r.role != "fit"})
+        self.verdict_, self.heldout_beyond_floor_ = self.script.pop(0)
+        self.floor_, self.calibrated_ = 0.01, Namespace(rmse_fit=0.011)
+        self.timings_, self.n_runs_, self.n_failed_, self.recordings_ = {"calibrate": 1.0}, 10, 0, recs
+
+
+def test_fit_exchanges_the_split_only_when_the_fit_recordings_hide_a_heldout_mismatch():
+    # "none" with a held-out run far beyond the floor: a second pass with it fitted answers
+    d = _ScriptedDiagnosis([("none", {"b_down": 18.0, "a_fast": 2.0}), ("selected", {})]).fit(_runs())
+    assert d.seen == [{"a_fast", "b_down"}, {"a_fast", "a_down"}]
+    assert d.verdict_ == "selected" and d.first_split_["exchanged"] == {"b_down": "a_down"}
+    assert d.first_split_["verdict"] == "none" and d.n_runs_ == 20 and d.timings_["first_split"] == 1.0
+    # within max_remaining floors, after another verdict, or switched off: one pass
+    for script, kw in [([("none", {"b_down": 4.9})], {}), ([("unexplained", {"b_down": 18.0})], {}),
+                       ([("none", {"b_down": 18.0})], {"exchange_split": False})]:
+        d = _ScriptedDiagnosis(script, **kw).fit(_runs())
+        assert len(d.seen) == 1 and d.first_split_ is None
 
 
 # ----------------------------------------------------------------------------- command errors

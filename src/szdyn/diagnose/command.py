@@ -34,6 +34,9 @@ def _build_parser():
     ap.add_argument("--no-probe-screen", action="store_true",
                     help="do not evaluate every candidate switched on at finite amplitudes (the best of "
                     "them, if it beats the calibrated base, is refitted)")
+    ap.add_argument("--no-exchange-split", action="store_true",
+                    help="when the fit recordings show nothing but a held-out one is missed by more than "
+                    "5 noise floors, do not run again with it fitted and a similar fit recording held out")
     ap.add_argument("--max-jac", type=int, default=4, help="Jacobians per nonlinear fit (default 4; calibration twice)")
     ap.add_argument("--polish-jac", type=int, help="Jacobians to continue a budget-stopped calibration or "
                     "leading candidate with (default twice --max-jac; 0: never)")
@@ -100,7 +103,8 @@ def diagnose_command(argv) -> int:
         f"{sum(r.role != 'fit' for r in recs)} held out")
     d = Diagnosis(cands, shortlist=args.shortlist, nominate_r2=args.nominate_r2,
                   probe_screen=not args.no_probe_screen, max_jac=args.max_jac,
-                  polish_jac=args.polish_jac, workers=args.workers,
+                  polish_jac=args.polish_jac, exchange_split=not args.no_exchange_split,
+                  workers=args.workers,
                   log=log, progress=progress).fit(recs)
     js = write_report(d, args.out)
     sel = ", ".join(js["selected"]) or d.verdict_

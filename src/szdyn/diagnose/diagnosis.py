@@ -35,6 +35,7 @@ from .fit import Hypothesis, fit_hypothesis, jacobian
 from .locate import follows, locate
 from .noise import bump_noise, sensor_noise
 from .selection import SelectionRule, decide, nominate, screen
+from .split import exchange_pairs, exchanged
 
 __all__ = ["FIT_TOL", "Diagnosis"]
 
@@ -72,6 +73,10 @@ class Diagnosis:
     polish_jac : int, optional
         Jacobians with which a budget-stopped calibration or leading candidate is continued
         (default ``2 max_jac``; 0: never).
+    exchange_split : bool
+        When the fit recordings show nothing but a held-out one is missed by more than
+        ``rule.max_remaining`` floors, run again with it fitted and a similar fit recording held
+        out (:meth:`fit`).
     workers : int, optional
         Processes for the model runs (default: CPU count).
     log : callable(str), optional
@@ -125,16 +130,22 @@ class Diagnosis:
         ``before``/``after`` held-out RMSE (rad/s), overall and per recording.
     heldout_beyond_floor_ : dict of str -> float
         Held-out recordings that the final model misses by more than ``rule.min_excess`` times
-        the noise floor, with that ratio. Reported only: a held-out recording can show what the
-        fit recordings do not (another speed, the full-slip cliff), but it never changes the
-        verdict.
+        the noise floor, with that ratio. A held-out recording can show what the fit recordings
+        do not (another speed, the full-slip cliff); it never changes a verdict directly, but
+        beyond ``rule.max_remaining`` floors after a "none" it makes :meth:`fit` exchange it.
+    first_split_ : dict or None
+        When the split was exchanged: the first pass's ``heldout`` names, ``verdict``,
+        ``calibrated_fit_over_floor``, ``heldout_beyond_floor``, the ``exchanged`` pairs
+        (held-out name -> fit name), its ``seconds``, ``model_runs`` and ``failed_runs``
+        (included in ``timings_`` and ``n_runs_``). None otherwise.
     timings_ : dict
         Wall-clock seconds per step.
     """
 
     def __init__(self, candidates=None, rule: SelectionRule | None = None, *, shortlist: int = 2,
                  nominate_r2: float | None = 0.3, probe_screen: bool = True, max_jac: int = 4,
-                 polish_jac: int | None = None, workers: int | None = None, log=None, progress=None):
+                 polish_jac: int | None = None, exchange_split: bool = True, workers: int | None = None,
+                 log=None, progress=None):
         self.candidates = candidates
         self.rule = rule or SelectionRule()
         self.shortlist = shortlist
@@ -142,6 +153,7 @@ class Diagnosis:
         self.probe_screen = probe_screen
         self.max_jac = max_jac
         self.polish_jac = polish_jac
+        self.exchange_split = exchange_split
         self.workers = workers
         self.log = log or (lambda msg: None)
         self.progress = progress
@@ -276,9 +288,39 @@ class Diagnosis:
         """Run the diagnosis on prepared recordings (:func:`.data.prepare`).
 
         At least one recording must have role ``"fit"``; held-out ones (role ``"heldout"``)
-        are never used to fit, only to select and to report.
+        are never used to fit, only to select and to report. When the answer is "none" but a
+        held-out recording is missed by more than ``rule.max_remaining`` noise floors, the split
+        hid the mismatch: with ``exchange_split`` the diagnosis runs once more with that recording
+        among the fit ones and a similar fit recording held out instead
+        (:func:`.split.exchange_pairs`), and the second pass is the answer (``first_split_``
+        keeps what the first said).
         """
         recs = list(recordings)
+        self.first_split_ = None
+        self._fit_pass(recs)
+        lim = self.rule.max_remaining
+        missed = sorted((k for k, v in self.heldout_beyond_floor_.items() if v > lim),
+                        key=lambda k: -self.heldout_beyond_floor_[k])
+        pairs = exchange_pairs(recs, missed) if self.exchange_split and self.verdict_ == "none" else {}
+        if pairs:
+            first = {"heldout": [r.name for r in recs if r.role != "fit"], "verdict": self.verdict_,
+                     "calibrated_fit_over_floor": self.calibrated_.rmse_fit / self.floor_,
+                     "heldout_beyond_floor": dict(self.heldout_beyond_floor_), "exchanged": pairs,
+                     "seconds": round(sum(self.timings_.values()), 2), "model_runs": self.n_runs_,
+                     "failed_runs": self.n_failed_}
+            self.log("the fit recordings are reproduced but held-out "
+                     + ", ".join(f"{k} is {self.heldout_beyond_floor_[k]:.1f}x the floor" for k in pairs)
+                     + ": the split hid the mismatch; running again with "
+                     + ", ".join(f"{k} fitted and {v} held out" for k, v in pairs.items()))
+            self._fit_pass(exchanged(recs, pairs))
+            self.first_split_ = first
+            self.timings_ = {"first_split": first["seconds"], **self.timings_}
+            self.n_runs_ += first["model_runs"]
+            self.n_failed_ += first["failed_runs"]
+        return self
+
+    def _fit_pass(self, recs) -> None:
+        """One diagnosis with the roles of ``recs`` as they are (see :meth:`fit`)."""
         fit_idx = [i for i, r in enumerate(recs) if r.role == "fit"]
         held_idx = [i for i, r in enumerate(recs) if r.role != "fit"]
         if not fit_idx:
@@ -521,4 +563,3 @@ class Diagnosis:
             self.n_runs_ = model.n_runs_
             self.n_failed_ = model.n_failed_
         self.recordings_ = recs
-        return self

@@ -180,6 +180,7 @@ def _to_json(d) -> dict:
                           "fit_rmse": fin.rmse_fit,
                           "per_recording": d.heldout_["after"]["per_recording"]}},
         "heldout_beyond_floor": [{"recording": k, "ratio": v} for k, v in d.heldout_beyond_floor_.items()],
+        "split": {"heldout": [r.name for r in d.recordings_ if r.role != "fit"], "first": d.first_split_},
         "noise_floor": d.floor_, "noise_floor_parts": d.floor_parts_,
         "mismatch_significant": bool(d.mismatch_),
         "rule": d.rule.__dict__,
@@ -240,6 +241,17 @@ def _report_md(d, js) -> str:
               "manifest `[split]`, and run again), or they are less reproducible than the floor "
               "estimate says (near the full-slip cliff: on szdyn's grid a 2 % change of mu_k "
               "decided between tracking and slipping on one such recording).", ""]
+    if d.first_split_:
+        f1 = d.first_split_
+        L += ["**Split exchanged.** A first pass with " + ", ".join(f"`{k}`" for k in f1["heldout"])
+              + f" held out said {f1['verdict']}: the calibrated base reproduced the fit recordings "
+              f"({f1['calibrated_fit_over_floor']:.2f}x the floor) but missed held-out "
+              + ", ".join(f"`{k}` ({f1['heldout_beyond_floor'][k]:.1f}x)" for k in f1["exchanged"])
+              + " by more than " + f"{d.rule.max_remaining:g}x the floor, so the split hid the mismatch. "
+              "This diagnosis is the second pass, with "
+              + ", ".join(f"`{k}` fitted and `{v}` held out instead" for k, v in f1["exchanged"].items())
+              + f" (same direction and speed where possible, another load). First pass: "
+              f"{f1['seconds']:.0f} s, {f1['model_runs']} model runs.", ""]
     L += ["## What was compared", "", COMPARED + ".", "",
           "Recordings: " + ", ".join(f"`{r.name}` ({r.role}, {r.load_kg:g} kg)" for r in d.recordings_) + ".", "",
           f"Noise floor {_f(d.floor_)} rad/s = sqrt(sensor {_f(d.floor_parts_['sensor'])}^2 + "
