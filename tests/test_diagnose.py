@@ -531,6 +531,9 @@ def test_diagnosis_json_schema(viscous):
     # the effect parameter comes with its (local) standard deviation
     sel = next(e for e in d["effects"] if e["selected"])
     assert sel["primary"]["std"] == pytest.approx(sel["std"]["c_visc"])
+    # a torque-like effect parameter is also given relative to the refit's kinetic friction
+    assert sel["primary"]["per_mu_k"] == pytest.approx(sel["primary"]["value"] / d["final"]["values"]["mu_k"])
+    assert all("per_mu_k" not in e.get("primary", {}) for e in d["effects"] if e["id"] == "encoder_scale")
     # held-out recordings the final model misses beyond the floor are listed, and only those
     after = d["fit"]["after"]["per_recording"]
     beyond = {b["recording"]: b["ratio"] for b in d["heldout_beyond_floor"]}

@@ -89,6 +89,13 @@ class Candidate:
         missing this term follows. When the calibrated model's residual follows one of them more
         than any other, the candidate is refitted whatever its linear screening says
         (:func:`~szdyn.diagnose.selection.nominate`).
+    force_scaled : bool
+        ``primary`` is a torque, a torque per speed or per angle, or a friction coefficient:
+        it scales with the model's force scale, which speed recordings barely fix (all force
+        coefficients and the effect scaled together by 1.25 change the compared feature by 0.43
+        noise floors: slider_viscous seed 14 of the out-of-sample grid). Such a parameter is
+        determined relative to the kinetic friction (``primary / mu_k``) and is reported so
+        as well.
     """
 
     id: str
@@ -100,6 +107,7 @@ class Candidate:
     expression: str
     explains: str
     signature: tuple = ()
+    force_scaled: bool = False
 
 
 def _lin(name):
@@ -156,7 +164,7 @@ CANDIDATES: dict[str, Candidate] = {c.id: c for c in (
         _lin("c_visc"), "c_visc", lambda v: v["c_visc"],
         "tau_b += -c_visc * u_b",
         "band-speed-proportional drag: slip grows with held speed (2 pi vs pi) beyond Coulomb",
-        signature=("band_speed",)),
+        signature=("band_speed",), force_scaled=True),
     Candidate(
         "slider_stribeck", "model",
         (FitParam("mu_st", "1", 0.0, 1.5, 0.1), FitParam("v_st", "rad/s", 0.05, 3.0, 0.2, start=0.5,
@@ -166,7 +174,7 @@ CANDIDATES: dict[str, Candidate] = {c.id: c for c in (
         _stribeck, "mu_st", lambda v: v["mu_st"],
         "tau_b += -R_bo m_b g mu_st exp(-(u_b/v_st)^2) sign(u_b)",
         "extra friction at low band speed: start-up lag and slow-speed slip, fading at speed",
-        signature=("low_speed",)),
+        signature=("low_speed",), force_scaled=True),
     Candidate(
         "friction_asymmetry", "model",
         (FitParam("fric_asym", "1", -0.7, 0.7, 0.1),),
@@ -180,14 +188,14 @@ CANDIDATES: dict[str, Candidate] = {c.id: c for c in (
         _lin("tau_lift"), "tau_lift", lambda v: v["tau_lift"],
         "tau_b += -tau_lift,  tau_lift = m_lift g P_B / (2 pi)",
         "a constant torque against extension: more slip extending, less retracting",
-        signature=("direction", "load")),
+        signature=("direction", "load"), force_scaled=True),
     Candidate(
         "position_periodic", "model",
         (FitParam("a_rev_s", "N*m", -0.15, 0.15, 0.01), FitParam("a_rev_c", "N*m", -0.15, 0.15, 0.01)),
         _periodic, "a_rev", lambda v: math.hypot(v["a_rev_s"], v["a_rev_c"]),
         "tau_b += -a_rev sin(q_b + phi_rev)",
         "residual periodic in the band angle, once per band revolution",
-        signature=("sin_band_angle", "cos_band_angle")),
+        signature=("sin_band_angle", "cos_band_angle"), force_scaled=True),
     Candidate(
         "friction_drift", "model",
         (FitParam("k_drift", "1/s", -0.3, 0.3, 0.02),),
@@ -209,7 +217,7 @@ CANDIDATES: dict[str, Candidate] = {c.id: c for c in (
                                            else math.inf),
         "tau_w = k_drive (q_m - q_w) + c_drive (u_m - u_w),  q_m the measured motor angle",
         "wind-up between motor encoder and wheel: lag in ramps, oscillation after speed changes",
-        signature=("band_accel",)),
+        signature=("band_accel",), force_scaled=True),
     Candidate(
         "encoder_scale", "sensor",
         (FitParam("encoder_scale", "1", -0.2, 0.2, 0.01),),

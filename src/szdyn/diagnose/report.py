@@ -35,6 +35,7 @@ UNITS = {"rmse": "rad/s", "heldout_rmse": "rad/s", "noise_floor": "rad/s", "t0":
          "ratio (heldout_beyond_floor)": "held-out RMSE of the final model / noise floor (1)",
          "score (effect)": "share of the calibrated model's excess residual energy over the noise floor "
                            "that the effect explains (1; linearised for candidates not refitted)",
+         "per_mu_k (effect primary)": "the effect parameter's own unit (mu_k is 1)",
          "k_c": "N*m/rad", "b_c": "N*m*s/rad", "k_imp": "N/m^n", "b_imp": "N*s/m^(n+1)", "mu_s": "1", "mu_k": "1"}
 
 
@@ -148,6 +149,9 @@ def _to_json(d) -> dict:
                          "explains_mismatch": d.rule.explains_mismatch(
                              res.rmse_fit, d.floor_, h0=d.heldout_["before"]["heldout_rmse"], hc=r["heldout_rmse"]),
                          "fit_status": _status(res)})
+            if cand.force_scaled:
+                # what speed recordings determine (see Candidate.force_scaled)
+                item["primary"]["per_mu_k"] = item["primary"]["value"] / res.values["mu_k"]
         else:
             item.update({"score": float(np.clip((b * b - lin * lin) / excess, 0, 1)) if d.mismatch_ else 0.0,
                          "parameters": {}})
@@ -319,6 +323,13 @@ def _report_md(d, js) -> str:
         L += ["", f"Model/sensor parameters set: `{e['parameters']}`; effect parameter "
               f"`{e['primary']['name']}` = {_f(e['primary']['value'])} (std {_f(e['primary']['std'])}; "
               "a local estimate like the coefficients', see the calibration section).", ""]
+        if "per_mu_k" in e["primary"]:
+            pn = e["primary"]["name"]
+            L += [f"`{pn}` / mu_k = {_f(e['primary']['per_mu_k'])}. Speed recordings fix the size of every "
+                  "torque mainly relative to the others: scaling all force coefficients and the effect "
+                  "together by 1.25 changed szdyn's compared feature by 0.43 noise floors (slider_viscous, "
+                  f"out-of-sample seed 14). If the calibrated mu_k is off by some factor, `{pn}` is likely "
+                  "off by about the same factor; the ratio is the better-determined number.", ""]
     fb, fa = js["fit"]["before"], js["fit"]["after"]
     L += ["## Fit before and after", "", "| | fit RMSE (rad/s) | held-out RMSE (rad/s) |", "|---|---|---|",
           f"| before (calibrated base) | {_f(fb['fit_rmse'])} | {_f(fb['heldout_rmse'])} |",
