@@ -91,11 +91,11 @@ class Candidate:
         (:func:`~szdyn.diagnose.selection.nominate`).
     force_scaled : bool
         ``primary`` is a torque, a torque per speed or per angle, or a friction coefficient:
-        it scales with the model's force scale, which speed recordings barely fix (all force
-        coefficients and the effect scaled together by 1.25 change the compared feature by 0.43
-        noise floors: slider_viscous seed 14 of the out-of-sample grid). Such a parameter is
-        determined relative to the kinetic friction (``primary / mu_k``) and is reported so
-        as well.
+        it scales with the model's force scale, which speed recordings fix only weakly (every
+        force coefficient and the effect scaled together by 1.25 changed the compared feature by
+        0.4 to 2.8 noise floors on four grid cases, docs/DIAGNOSIS-DESIGN.md, "The force scale").
+        Such a parameter is better determined relative to the kinetic friction
+        (``primary / mu_k``) and is reported so as well.
     """
 
     id: str

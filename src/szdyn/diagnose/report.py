@@ -326,9 +326,9 @@ def _report_md(d, js) -> str:
         if "per_mu_k" in e["primary"]:
             pn = e["primary"]["name"]
             L += [f"`{pn}` / mu_k = {_f(e['primary']['per_mu_k'])}. Speed recordings fix the size of every "
-                  "torque mainly relative to the others: scaling all force coefficients and the effect "
-                  "together by 1.25 changed szdyn's compared feature by 0.43 noise floors (slider_viscous, "
-                  f"out-of-sample seed 14). If the calibrated mu_k is off by some factor, `{pn}` is likely "
+                  "torque mainly relative to the others: scaling every force coefficient and the effect "
+                  "together by 1.25 changed szdyn's compared feature by only 0.4 to 2.8 noise floors on "
+                  f"four benchmark cases. If the calibrated mu_k is off by some factor, `{pn}` is likely "
                   "off by about the same factor; the ratio is the better-determined number.", ""]
     fb, fa = js["fit"]["before"], js["fit"]["after"]
     L += ["## Fit before and after", "", "| | fit RMSE (rad/s) | held-out RMSE (rad/s) |", "|---|---|---|",
