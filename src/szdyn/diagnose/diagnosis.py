@@ -12,7 +12,9 @@ Steps (each a module of its own):
    only the new start?), and select with :class:`~.selection.SelectionRule` (held-out data +
    information criterion; an effect is named only if its refit comes within a few noise floors,
    :func:`~.selection.decide`);
-5. keep the refitted model of the selected effect as the updated model.
+5. keep the refitted model of the selected effect as the updated model;
+6. if that said "none" while a held-out recording is far off, exchange it with a similar fit
+   recording and run steps 1-5 again (:mod:`.split`).
 
 Budgets: every nonlinear fit is capped in Jacobians (``max_jac``; calibration ``2 max_jac``).
 A fit stopped by its cap is *continued* with ``polish_jac`` more where the answer depends on

@@ -254,7 +254,8 @@ def _report_md(d, js) -> str:
               + " by more than " + f"{d.rule.max_remaining:g}x the floor, so the split hid the mismatch. "
               "This diagnosis is the second pass, with "
               + ", ".join(f"`{k}` fitted and `{v}` held out instead" for k, v in f1["exchanged"].items())
-              + f" (same direction and speed where possible, another load). First pass: "
+              + f" (the fit recording most like it: same travel direction, then nearest speed, then "
+              "nearest load). First pass: "
               f"{f1['seconds']:.0f} s, {f1['model_runs']} model runs.", ""]
     L += ["## What was compared", "", COMPARED + ".", "",
           "Recordings: " + ", ".join(f"`{r.name}` ({r.role}, {r.load_kg:g} kg)" for r in d.recordings_) + ".", "",
