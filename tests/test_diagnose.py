@@ -21,7 +21,7 @@ from szdyn.diagnose.diagnosis import Diagnosis
 from szdyn.diagnose.engine import apply_sensor_transform, model_speed
 from szdyn.diagnose.fit import Hypothesis, fit_hypothesis, jacobian
 from szdyn.diagnose.locate import FEATURES
-from szdyn.diagnose.selection import Decision, SelectionRule, decide, nominate, screen
+from szdyn.diagnose.selection import Decision, SelectionRule, decide, nominate, rivals, screen
 from szdyn.diagnose.split import exchange_pairs, exchanged
 from szdyn.params import param_names
 from szdyn.run import main as run_main
@@ -198,6 +198,18 @@ def test_decide_names_only_an_effect_that_reaches_the_floor():
         assert (dec.verdict, dec.partial) == ("unexplained", ["load_lift"])
     # no candidate at all: unexplained, nothing partial
     assert decide(rule, {}, mismatch=True, floor=floor) == Decision("unexplained")
+
+
+def test_rivals_are_the_next_screened_candidates_when_the_winner_leaves_the_fit_off():
+    rule, ranking = SelectionRule(), ["encoder_scale", "wheel_band_traction", "slider_viscous", "load_lift", "x"]
+    refitted = {"encoder_scale": {}, "wheel_band_traction": {}}
+    # slider_viscous seed 15: encoder_scale selected at 4.7 floors, the drag ranked third
+    assert rivals(rule, ["encoder_scale"], 4.7e-2, 1e-2, ranking, refitted, 2) == ["slider_viscous", "load_lift"]
+    assert rivals(rule, ["encoder_scale"], 4.7e-2, 1e-2, ranking, refitted, 1) == ["slider_viscous"]
+    # within rule.rival_floor (2) floors, nothing selected, or switched off: no rivals
+    assert rivals(rule, ["encoder_scale"], 2.0e-2, 1e-2, ranking, refitted, 2) == []
+    assert rivals(rule, [], math.nan, 1e-2, ranking, refitted, 2) == []
+    assert rivals(rule, ["encoder_scale"], 4.7e-2, 1e-2, ranking, refitted, 0) == []
 
 
 def test_linear_screening_recovers_a_linear_effect():
@@ -448,13 +460,14 @@ def test_diagnose_nomination_threshold_outside_0_1_is_a_clear_error(tmp_path, ca
     assert "--nominate-r2" in err and "Traceback" not in err
 
 
-def test_diagnose_negative_polish_budget_is_a_clear_error(tmp_path, capsys):
+@pytest.mark.parametrize("flag", ["--polish-jac", "--rivals"])
+def test_diagnose_negative_budget_is_a_clear_error(tmp_path, capsys, flag):
     m = tmp_path / "m.toml"
     m.write_text("")
-    rc = run_main(["diagnose", str(m), "--out", str(tmp_path / "o"), "--polish-jac", "-1"])
+    rc = run_main(["diagnose", str(m), "--out", str(tmp_path / "o"), flag, "-1"])
     assert rc == 2
     err = capsys.readouterr().err
-    assert "--polish-jac" in err and "Traceback" not in err
+    assert flag in err and "Traceback" not in err
 
 
 # ----------------------------------------------------------------------------- end to end
@@ -525,6 +538,7 @@ def test_diagnosis_json_schema(viscous):
     nom = d["nominated"]
     assert nom["feature"] in FEATURES and 0.0 <= nom["r2"] <= 1.0 and set(nom["added"]) <= set(nom["ids"])
     assert all(e["refitted"] for e in d["effects"] if e["id"] in nom["ids"])
+    assert all(e["refitted"] for e in d["effects"] if e["id"] in d["rivals"])
     # the ablation (base model alone from the selected candidate's coefficients) ran and, the
     # drag being real, did not fit as well
     assert d["ablation"]["candidate"] == "slider_viscous" and not d["ablation"]["adopted"]

@@ -34,6 +34,9 @@ def _build_parser():
     ap.add_argument("--no-probe-screen", action="store_true",
                     help="do not evaluate every candidate switched on at finite amplitudes (the best of "
                     "them, if it beats the calibrated base, is refitted)")
+    ap.add_argument("--rivals", type=int, default=2,
+                    help="when the selected candidate leaves the fit above 2 noise floors, also refit this "
+                    "many more of the linear screening (default 2; 0: never)")
     ap.add_argument("--no-exchange-split", action="store_true",
                     help="when the fit recordings show nothing but a held-out one is missed by more than "
                     "5 noise floors, do not run again with it fitted and a similar fit recording held out")
@@ -68,6 +71,8 @@ def diagnose_command(argv) -> int:
         raise UserInputError(f"diagnose: --shortlist must be >= 1, got {args.shortlist}")
     if not 0.0 <= args.nominate_r2 <= 1.01:   # also refuses NaN
         raise UserInputError(f"diagnose: --nominate-r2 must be an R^2 in 0..1 (1.01: never), got {args.nominate_r2}")
+    if args.rivals < 0:
+        raise UserInputError(f"diagnose: --rivals must be >= 0, got {args.rivals}")
     if args.max_jac < 1:
         raise UserInputError(f"diagnose: --max-jac must be >= 1, got {args.max_jac}")
     if args.polish_jac is not None and args.polish_jac < 0:
@@ -103,7 +108,7 @@ def diagnose_command(argv) -> int:
         f"{sum(r.role != 'fit' for r in recs)} held out")
     d = Diagnosis(cands, shortlist=args.shortlist, nominate_r2=args.nominate_r2,
                   probe_screen=not args.no_probe_screen, max_jac=args.max_jac,
-                  polish_jac=args.polish_jac, exchange_split=not args.no_exchange_split,
+                  polish_jac=args.polish_jac, rivals=args.rivals, exchange_split=not args.no_exchange_split,
                   workers=args.workers,
                   log=log, progress=progress).fit(recs)
     js = write_report(d, args.out)

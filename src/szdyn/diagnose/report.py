@@ -190,6 +190,7 @@ def _to_json(d) -> dict:
         "rule": d.rule.__dict__,
         "location": {"recordings": d.location_["recordings"], "follows": d.location_["follows"]},
         "nominated": d.nominated_,
+        "rivals": list(d.rivals_),
         "probing": d.probing_,
         "recordings": [{"name": r.name, "role": r.role, "load_kg": r.load_kg,
                         "t0": r.t0, "t1": r.t1, "samples": len(r.rec)} for r in d.recordings_],
@@ -305,8 +306,12 @@ def _report_md(d, js) -> str:
           "Screened linearly at the calibrated point, the best "
           f"{d.shortlist} refitted nonlinearly (base coefficients refitted too; a second start from the "
           f"uncalibrated coefficients when the first refit is not at the floor, a third with the effect "
-          f"at an amplitude probe when it still explains too little). Rule: {d.rule}.", "",
+          f"at an amplitude probe when it still explains too little; the next {d.rivals} of the screening "
+          f"too when the provisional winner left the fit above {d.rule.rival_floor:g}x the floor). "
+          f"Rule: {d.rule}.", "",
           _nominated_md(d), "", _probing_md(d), "",
+          *([f"Rivals refitted because the provisional winner left the fit above {d.rule.rival_floor:g}x "
+             "the floor: " + ", ".join(f"`{k}`" for k in d.rivals_) + ".", ""] if d.rivals_ else []),
           "| effect | score | screen RMSE | refit RMSE | held-out RMSE | dBIC | eligible | selected | refit |",
           "|---|---|---|---|---|---|---|---|---|"]
     for e in js["effects"]:
