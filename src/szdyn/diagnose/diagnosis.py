@@ -343,7 +343,8 @@ class Diagnosis:
         def lap(name):
             nonlocal clock
             now = time.perf_counter()
-            self.timings_[name] = round(now - clock, 2)
+            # accumulates: the leader may be continued twice (before and after rivals)
+            self.timings_[name] = round(self.timings_.get(name, 0.0) + now - clock, 2)
             clock = now
 
         p0 = recs[fit_idx[0]].params
@@ -553,8 +554,8 @@ class Diagnosis:
                          f"also refitting the next screened {', '.join(extra)}")
                 for cid in extra:
                     refit(cid)
-                continue_leader()
                 lap("rivals")
+                continue_leader()
 
             # 5d. ablation: the selection compares each candidate with the calibrated base, but a
             # refit also starts the base coefficients afresh and may just have found a better

@@ -62,7 +62,7 @@ held-out RMSEs:
    screening too (:func:`rivals`): out-of-sample slider_viscous seed 15 (calibrated 19x the
    floor, far off in k_imp and mu_k) shortlisted encoder_scale and wheel_band_traction, and
    encoder_scale won at 4.7 floors while the drag, ranked third, was never refitted. Correctly
-   named cases of the grid ended within 1.9 floors; four of seeds 13 and 14 at 3.3-3.9 (and
+   named cases of the grid ended within 1.9 floors; four of seeds 13 and 14 at 2.9-3.9 (and
    load_lift seed 14 at 21, by the held-out arm of rule 3).
 6. Other such candidates whose fit is within ``min_dbic`` of the selected one
    (``n_eff ln(rss_other / rss_selected) < min_dbic``) are reported as **indistinguishable**.
