@@ -134,6 +134,29 @@ def test_traction_runs_are_integrated_to_convergence():
     assert np.abs(fit_run - ref).max() < 0.02 * effect
 
 
+def test_a_drive_stiffer_than_the_features_resolve_is_rigid():
+    """A compliance fitted at (or clipped to) ~0 must not become k_drive ~ 1e9: stiff, and slow."""
+    from szdyn.diagnose.candidates import RIGID_COMPLIANCE, _compliance
+
+    assert _compliance({"drive_compliance": 2e-9}) == ({}, {})
+    assert _compliance({"drive_compliance": 0.5 * RIGID_COMPLIANCE}) == ({}, {})
+    mc, _ = _compliance({"drive_compliance": RIGID_COMPLIANCE})
+    assert mc == {"drive_mode": 2.0, "k_drive": pytest.approx(1.0 / RIGID_COMPLIANCE)}
+
+
+def test_a_run_over_its_step_budget_fails_instead_of_stalling(monkeypatch):
+    """dopri5 runs in a fit are capped (steps per simulated second): over it, the run fails."""
+    from szdyn.defaults import default_parameters
+    from szdyn.drive import RampHold
+    from szdyn.diagnose import engine
+
+    p0 = default_parameters()
+    task = (p0.to_dict(), RampHold(a=3.14, t_ramp=0.3, t_hold=0.0), 0.0, 0.3, {"mu_t": 0.3})
+    assert engine._simulate(task) is not None
+    monkeypatch.setattr(engine, "DOPRI5_MAX_STEPS_PER_S", 100.0)
+    assert engine._simulate(task) is None
+
+
 # ----------------------------------------------------------------------------- rule
 def test_rule_says_none_at_the_noise_floor_and_picks_an_explaining_candidate():
     rule = SelectionRule()
