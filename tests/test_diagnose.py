@@ -540,7 +540,7 @@ def test_concealed_viscous_drag_is_named_recovered_and_improves_heldout(viscous)
 
 
 def test_diagnosis_json_schema(viscous):
-    _, d, _ = viscous
+    truth, d, _ = viscous
     assert set(d) >= {"selected", "effects", "mismatch", "calibrated", "fit"}
     for e in d["effects"]:
         assert set(e) >= {"id", "score", "selected", "parameters", "expression", "explains"}
@@ -562,6 +562,14 @@ def test_diagnosis_json_schema(viscous):
     assert nom["feature"] in FEATURES and 0.0 <= nom["r2"] <= 1.0 and set(nom["added"]) <= set(nom["ids"])
     assert all(e["refitted"] for e in d["effects"] if e["id"] in nom["ids"])
     assert all(e["refitted"] for e in d["effects"] if e["id"] in d["rivals"])
+    # what the recordings can see: every screened effect's smallest flagged amplitude; the
+    # concealed drag, flagged and named, was larger than its own
+    for e in d["effects"]:
+        assert e["detectable"]
+        for t in e["detectable"]:
+            assert t["parameters"] and t["unit"] and (t["amplitude"] is None or t["amplitude"] > 0)
+    [vis] = next(e for e in d["effects"] if e["id"] == "slider_viscous")["detectable"]
+    assert vis["parameters"] == ["c_visc"] and 0 < vis["amplitude"] < truth["effect_parameters"]["c_visc"]
     # the ablation (base model alone from the selected candidate's coefficients) ran and, the
     # drag being real, did not fit as well
     assert d["ablation"]["candidate"] == "slider_viscous" and not d["ablation"]["adopted"]

@@ -33,6 +33,7 @@ import time
 import numpy as np
 
 from .candidates import CANDIDATES, Candidate
+from .detect import detectable_amplitude
 from .engine import FeatureModel, rms
 from .fit import Hypothesis, fit_hypothesis, jacobian
 from .locate import follows, locate
@@ -104,8 +105,8 @@ class Diagnosis:
     location_ : dict
         Output of :func:`.locate.locate` for the calibrated base model.
     screening_ : list of dict
-        Per candidate: linearised fit RMSE and linear step at the calibrated point, sorted by
-        that RMSE (see :meth:`_screen`).
+        Per candidate: linearised fit RMSE, linear step and smallest detectable amplitude at
+        the calibrated point, sorted by that RMSE (see :meth:`_screen`).
     nominated_ : dict
         ``feature`` and ``r2``: what the calibrated fit residual follows most (fit recordings);
         ``ids``: candidates refitted because their signature holds that feature;
@@ -178,8 +179,10 @@ class Diagnosis:
         """Linear screening of every candidate at the base point ``xb`` (base fit coordinates).
 
         Returns one dict per candidate, sorted by ``rmse_linear``: ``id``, ``rmse_linear``
-        (linearised fit RMSE after the candidate's best bounded step, rad/s) and ``x_start``
-        (that step in the candidate hypothesis' fit coordinates, inside the bounds).
+        (linearised fit RMSE after the candidate's best bounded step, rad/s), ``x_start``
+        (that step in the candidate hypothesis' fit coordinates, inside the bounds) and
+        ``detectable`` (the smallest amplitudes the mismatch test would flag,
+        :mod:`~szdyn.diagnose.detect`: one dict per value of the shape parameters' grid).
         """
         base_h = Hypothesis(start)
         lo_b, hi_b = base_h.bounds()
@@ -190,7 +193,7 @@ class Diagnosis:
             h = Hypothesis(start, cand)
             lo_h, hi_h = h.bounds()
             shape = [j for j, p in enumerate(h.params) if j >= h.n_base and p.screen_at]
-            best = None
+            best, det = None, []
             # shape parameters (no effect while the amplitude is 0) are tried on their grid,
             # the amplitude columns linearised at each
             for vals in itertools.product(*(h.params[j].screen_at for j in shape)):
@@ -201,6 +204,11 @@ class Diagnosis:
                 dlo = np.concatenate([lo_b - xb, lo_h[cols] - xc[cols]])
                 dhi = np.concatenate([hi_b - xb, hi_h[cols] - xc[cols]])
                 dx, rss = screen(r0, J_base, Jc, dlo, dhi)
+                worst, most = detectable_amplitude(J_base, Jc, self.floor_, min_excess=self.rule.min_excess)
+                det.append({"parameters": [h.params[j].name for j in cols],
+                            "unit": h.params[cols[0]].unit, "amplitude": worst,
+                            "amplitude_most_visible": most,
+                            "at": {h.params[j].name: float(v) for j, v in zip(shape, vals)}})
                 if best is None or rss < best[0]:
                     x_new = xc.copy()
                     x_new[:h.n_base] += dx[:h.n_base]
@@ -209,7 +217,7 @@ class Diagnosis:
                     # never asks for e.g. mu_t = -1e-12 (a ParameterError)
                     best = (rss, np.clip(x_new, lo_h, hi_h))
             out.append({"id": cand.id, "rmse_linear": math.sqrt(best[0] / r0.size),
-                        "x_start": best[1].tolist()})
+                        "x_start": best[1].tolist(), "detectable": det})
         return sorted(out, key=lambda s: s["rmse_linear"])
 
     @staticmethod

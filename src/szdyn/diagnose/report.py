@@ -113,6 +113,30 @@ def _probing_md(d) -> str:
             + (f"; `{top['id']}` was refitted." if top["id"] in d.refits_ else "."))
 
 
+def _detectable_md(d, js) -> list:
+    """What these recordings can see: each candidate's smallest flagged amplitude (linearised)."""
+    rows = [e for e in js["effects"] if e.get("detectable")]
+    if not rows:
+        return []
+    L = ["### What these recordings can see", "",
+         f"The smallest amplitude of each effect that would lift the calibrated fit above the mismatch "
+         f"threshold ({d.rule.min_excess:g} noise floors) if nothing else were off: the part of its "
+         "linear sensitivity that the base coefficients cannot absorb, at the calibrated point "
+         "(`szdyn.diagnose.detect`). Smaller effects may be present and not flagged; the base model's "
+         "own mismatch makes the practical threshold higher. `inf` (null in diagnosis.json): no linear trace from \"off\" "
+         "(e.g. where the model sticks); the nonlinear refits may still see it. It is a local "
+         "estimate: the base model refitted from another start can absorb more of an effect.", "",
+         "| effect | amplitude | unit | smallest flagged (least visible direction) | most visible direction | at |",
+         "|---|---|---|---|---|---|"]
+    for e in sorted(rows, key=lambda e: e["id"]):
+        for t in e["detectable"]:
+            at = ", ".join(f"{k} = {_f(v)}" for k, v in t["at"].items()) or "-"
+            worst, most = ("inf" if t[k] is None or math.isinf(t[k]) else _f(t[k])
+                           for k in ("amplitude", "amplitude_most_visible"))
+            L.append(f"| {e['id']} | {', '.join(t['parameters'])} | {t['unit']} | {worst} | {most} | {at} |")
+    return L
+
+
 def to_json(d) -> dict:
     """The diagnosis as a JSON-ready dict (NaN, e.g. no held-out recording, becomes null)."""
     return _clean(_to_json(d))
@@ -132,7 +156,7 @@ def _to_json(d) -> dict:
         item = {"id": cid, "kind": cand.kind, "selected": cid in d.selected_,
                 "expression": cand.expression, "explains": cand.explains,
                 "screen_rmse": lin, "refitted": cid in d.refits_,
-                "nominated": cid in d.nominated_["ids"]}
+                "nominated": cid in d.nominated_["ids"], "detectable": s.get("detectable", [])}
         if cid in d.refits_:
             r = d.refits_[cid]
             res = r["result"]
@@ -319,7 +343,7 @@ def _report_md(d, js) -> str:
                  f"{_f(e.get('heldout_rmse'))} | {_f(e.get('dbic'), '.1f')} | {e.get('eligible', '-')} | "
                  f"{'**yes**' if e['selected'] else ('partial' if e['id'] in d.partial_ else '')} | "
                  f"{e.get('fit_status', '-')} |")
-    L += ["", "Plot: `candidates.png`.", ""]
+    L += ["", "Plot: `candidates.png`.", "", *_detectable_md(d, js), ""]
     if d.selected_:
         e = next(x for x in js["effects"] if x["selected"])
         L += [f"## Selected: `{e['id']}`", "", f"Expression: `{e['expression']}`", "",
