@@ -1,9 +1,9 @@
 """What the recordings can see: the smallest effect amplitude that would have been flagged.
 
 A verdict of ``none`` says that nothing *significant* is missing; how significant an effect
-must be depends on the recordings (a Stribeck peak at low band speed leaves no trace in
-recordings that pass through low speed in a fraction of a second). At the calibrated point the
-screening already has each candidate's linear columns ``J_c`` (model speed per unit of the
+must be depends on the recordings (an effect that acts only at low band speed is weighed by
+the time the recordings spend there, a load-dependent one by the loads recorded). At the
+calibrated point the screening already has each candidate's linear columns ``J_c`` (model speed per unit of the
 effect's amplitude) and the base coefficients' ``J_b``. The part of ``J_c`` that the base
 coefficients cannot absorb, ``(I - P_b) J_c`` with ``P_b`` the projector onto the columns of
 ``J_b``, is what a concealed effect of amplitude ``a`` leaves in the fit residual after
@@ -17,8 +17,12 @@ for ``n`` compared samples, with the smallest singular value for an effect of se
 amplitude coordinates (its least visible direction, e.g. the worst phase of a once-per-rev
 torque) and the largest for its most visible one. It is a linear estimate from "off": an
 effect whose slope from "off" is zero where the model sticks gets ``inf`` (not seen in the
-linearisation), and the nonlinear fit may still see it. The base model's own mismatch raises
-the practical threshold: calibrated null cases of the benchmark grid end at 0.9-1.5 floors.
+linearisation), and the nonlinear fit may still see it. The estimate is optimistic where the
+base model absorbs an effect nonlinearly: on slider_stribeck seed 14 it flags mu_st from 0.008,
+yet the base model refitted from another start hides the truth's 0.116 down to 1.28 floors,
+its static friction taking the peak (docs/DIAGNOSIS-DESIGN.md). The base model's own mismatch
+also raises the practical threshold: calibrated null cases of the benchmark grid end at
+0.9-1.5 floors.
 """
 from __future__ import annotations
 
