@@ -296,7 +296,7 @@ def test_screened_starts_stay_inside_the_bounds():
     # a start of mu_t = -1e-12 stopped a grid case with a ParameterError
     d = Diagnosis(candidates=["wheel_band_traction"])
     x0 = Hypothesis(START).x_start()
-    (scr,) = d._screen(_WantsNegativeTraction(), START, x0, [0])
+    (scr,) = d._screen(_WantsNegativeTraction(), START, x0, [0], 0.01)
     lo, hi = Hypothesis(START, CANDIDATES["wheel_band_traction"]).bounds()
     x = np.array(scr["x_start"])
     assert np.all(x >= lo) and np.all(x <= hi), x
@@ -364,8 +364,11 @@ def test_probe_with_base_correction_finds_an_effect_the_linearisation_cannot():
     assert r0[1] == pytest.approx(0.2) and abs(r0[0]) < 1e-12
     # linearly the asymmetry is a copy of the mu_k column on the forward run, and nothing on the
     # stuck backward one: the screening finds no gain at all
-    (scr,) = d._screen(model, START, xb, [0])
+    (scr,) = d._screen(model, START, xb, [0], 0.01)
     assert scr["rmse_linear"] == pytest.approx(math.sqrt(float(r0 @ r0) / r0.size), rel=1e-6)
+    # ... and the detectable amplitude says so: no linear trace beyond what mu_k absorbs
+    assert scr["detectable"] == [{"parameters": ["fric_asym"], "unit": "1", "amplitude": math.inf,
+                                  "amplitude_most_visible": math.inf, "at": {}}]
     h = Hypothesis(START, CANDIDATES["friction_asymmetry"])
     probes = d._probe(model, h, xb, np.array(scr["x_start"]), [0])
     kinds = [k for k, _, _ in probes]

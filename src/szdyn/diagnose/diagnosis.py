@@ -175,8 +175,10 @@ class Diagnosis:
             return list(CANDIDATES.values())
         return [c if isinstance(c, Candidate) else CANDIDATES[c] for c in self.candidates]
 
-    def _screen(self, model, start: dict, xb, fit_idx) -> list:
+    def _screen(self, model, start: dict, xb, fit_idx, floor: float) -> list:
         """Linear screening of every candidate at the base point ``xb`` (base fit coordinates).
+
+        ``floor`` is the noise floor (rad/s), against which the detectable amplitudes are set.
 
         Returns one dict per candidate, sorted by ``rmse_linear``: ``id``, ``rmse_linear``
         (linearised fit RMSE after the candidate's best bounded step, rad/s), ``x_start``
@@ -204,7 +206,7 @@ class Diagnosis:
                 dlo = np.concatenate([lo_b - xb, lo_h[cols] - xc[cols]])
                 dhi = np.concatenate([hi_b - xb, hi_h[cols] - xc[cols]])
                 dx, rss = screen(r0, J_base, Jc, dlo, dhi)
-                worst, most = detectable_amplitude(J_base, Jc, self.floor_, min_excess=self.rule.min_excess)
+                worst, most = detectable_amplitude(J_base, Jc, floor, min_excess=self.rule.min_excess)
                 det.append({"parameters": [h.params[j].name for j in cols],
                             "unit": h.params[cols[0]].unit, "amplitude": worst,
                             "amplitude_most_visible": most,
@@ -407,7 +409,7 @@ class Diagnosis:
             # (Also screening at the uncalibrated ones was measured and not kept: see
             # docs/DIAGNOSIS-DESIGN.md, "Two linearisation points".)
             self.log(f"screening {len(self._library())} candidate effects")
-            self.screening_ = self._screen(model, start, cal.x, fit_idx)
+            self.screening_ = self._screen(model, start, cal.x, fit_idx, self.floor_)
             screened = {s["id"]: s for s in self.screening_}
             # what the fit residual follows (fit recordings only: held-out data judge, they do not
             # choose what is tried)
