@@ -130,7 +130,11 @@ def write_md(results, path: Path, args):
                  f"{'yes' if r['correct'] else '**no**'} | {_fmt(r.get('truth_param'))} | {_fmt(r.get('fitted_param'))} | "
                  f"{_fmt(r.get('param_error'), '.1%')} | {_fmt(r.get('param_error_per_mu_k'), '.1%')} | {_fmt(r.get('param_z'), '.1f')} | {_fmt(r['heldout_before'], '.4f')} -> {_fmt(r['heldout_after'], '.4f')} | "
                  f"{_fmt(r.get('heldout_ratio'), '.1f')} | {_fmt(r.get('seconds'), '.0f')} |")
-    L += ["", "Raw results: `docs/diagnosis-grid.json`.", ""]
+    raw = args.json.resolve()
+    raw = raw.relative_to(ROOT) if raw.is_relative_to(ROOT) else raw
+    L += ["", "For a missed case, \"fitted\" and \"error\" are those of the concealed effect's refit when "
+          "it was refitted but not selected; the summary counts correctly named cases only.", "",
+          f"Raw results: `{raw}`.", ""]
     if args.reading is not None and args.reading.is_file():
         # the human reading of the results lives in its own file, so that a re-run cannot erase it
         L += [args.reading.read_text().rstrip(), ""]
