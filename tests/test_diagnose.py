@@ -582,6 +582,11 @@ def test_diagnosis_json_schema(viscous):
     # a torque-like effect parameter is also given relative to the refit's kinetic friction
     assert sel["primary"]["per_mu_k"] == pytest.approx(sel["primary"]["value"] / d["final"]["values"]["mu_k"])
     assert all("per_mu_k" not in e.get("primary", {}) for e in d["effects"] if e["id"] == "encoder_scale")
+    # the floor is assembled from the fit recordings' own parts (RMS of sensor, median of bumps)
+    per = d["noise_floor_per_recording"]
+    assert set(per) == {r["recording"] for r in d["location"]["recordings"] if r["role"] == "fit"}
+    s = math.sqrt(np.mean([v["sensor"] ** 2 for v in per.values()]))
+    assert d["noise_floor"] == pytest.approx(math.hypot(s, float(np.median([v["bump"] for v in per.values()]))))
     # held-out recordings the final model misses beyond the floor are listed, and only those
     after = d["fit"]["after"]["per_recording"]
     beyond = {b["recording"]: b["ratio"] for b in d["heldout_beyond_floor"]}

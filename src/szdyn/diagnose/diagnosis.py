@@ -100,6 +100,9 @@ class Diagnosis:
         Noise floor of the compared feature (rad/s).
     floor_parts_ : dict
         ``sensor`` and ``bump`` parts (rad/s).
+    floor_per_recording_ : dict
+        Per fit recording, its own ``sensor`` and ``bump`` parts (rad/s); the floor takes the
+        RMS of the first and the median of the second over the fit recordings.
     mismatch_ : bool
         Whether the calibrated base model misses something significant.
     location_ : dict
@@ -378,6 +381,8 @@ class Diagnosis:
             s_bump = float(np.median(bump))
             self.floor_ = math.hypot(s_sens, s_bump)
             self.floor_parts_ = {"sensor": s_sens, "bump": s_bump}
+            self.floor_per_recording_ = {recs[i].name: {"sensor": a, "bump": b}
+                                         for i, a, b in zip(fit_idx, sens, bump)}
             self.mismatch_ = self.rule.mismatch(cal.rmse_fit, self.floor_)
             self.log(f"noise floor {self.floor_:.4g} rad/s (sensor {s_sens:.3g}, bumps {s_bump:.3g}); "
                      f"calibrated base is {cal.rmse_fit / self.floor_:.2f}x the floor")

@@ -210,6 +210,7 @@ def _to_json(d) -> dict:
         "heldout_beyond_floor": [{"recording": k, "ratio": v} for k, v in d.heldout_beyond_floor_.items()],
         "split": {"heldout": [r.name for r in d.recordings_ if r.role != "fit"], "first": d.first_split_},
         "noise_floor": d.floor_, "noise_floor_parts": d.floor_parts_,
+        "noise_floor_per_recording": d.floor_per_recording_,
         "mismatch_significant": bool(d.mismatch_),
         "rule": d.rule.__dict__,
         "location": {"recordings": d.location_["recordings"], "follows": d.location_["follows"]},
@@ -285,7 +286,12 @@ def _report_md(d, js) -> str:
     L += ["## What was compared", "", COMPARED + ".", "",
           "Recordings: " + ", ".join(f"`{r.name}` ({r.role}, {r.load_kg:g} kg)" for r in d.recordings_) + ".", "",
           f"Noise floor {_f(d.floor_)} rad/s = sqrt(sensor {_f(d.floor_parts_['sensor'])}^2 + "
-          f"impact bumps {_f(d.floor_parts_['bump'])}^2) (see `szdyn.diagnose.noise`).", "",
+          f"impact bumps {_f(d.floor_parts_['bump'])}^2) (see `szdyn.diagnose.noise`): the RMS of the "
+          "fit recordings' sensor noise and the median of their bumps. Per fit recording (sensor, bumps, "
+          "rad/s): " + "; ".join(f"`{k}` {_f(v['sensor'], '.3g')}, {_f(v['bump'], '.3g')}"
+                                  for k, v in d.floor_per_recording_.items()) + ". Where these differ a lot "
+          "(recordings that flip between tracking and slipping with the wheel phase have large bumps), "
+          "the common floor can hide an effect that the reproducible recordings show.", "",
           "## Calibration (base model, fit recordings)", "",
           "| coefficient | value | std | unit |", "|---|---|---|---|"]
     for k in ("k_c", "b_c", "k_imp", "mu_s", "mu_k"):
