@@ -434,15 +434,19 @@ def test_exchange_pairs_hold_out_a_run_of_the_same_kind_at_another_load():
 
 
 class _ScriptedDiagnosis(Diagnosis):
-    """A Diagnosis whose passes return scripted answers: (verdict, held-out ratios) per pass."""
+    """A Diagnosis whose passes return scripted answers: (verdict, held-out ratios[, spread of the
+    recordings' own floors]) per pass."""
 
     def __init__(self, script, **kw):
         super().__init__(**kw)
-        self.script, self.seen = list(script), []
+        self.script, self.seen, self.weighted_seen = list(script), [], []
 
-    def _fit_pass(self, recs):
+    def _fit_pass(self, recs, weighted=False):
         self.seen.append({r.name for r in recs if r.role != "fit"})
-        self.verdict_, self.heldout_beyond_floor_ = self.script.pop(0)
+        self.weighted_seen.append(weighted)
+        verdict, self.heldout_beyond_floor_, *spread = self.script.pop(0)
+        self.verdict_, self.selected_ = verdict, (["slider_viscous"] if verdict == "selected" else [])
+        self.floor_spread_, self.weighted_ = (spread or [1.5])[0], weighted
         self.floor_, self.calibrated_ = 0.01, Namespace(rmse_fit=0.011)
         self.timings_, self.n_runs_, self.n_failed_, self.recordings_ = {"calibrate": 1.0}, 10, 0, recs
 
@@ -458,6 +462,37 @@ def test_fit_exchanges_the_split_only_when_the_fit_recordings_hide_a_heldout_mis
                        ([("none", {"b_down": 18.0})], {"exchange_split": False})]:
         d = _ScriptedDiagnosis(script, **kw).fit(_runs())
         assert len(d.seen) == 1 and d.first_split_ is None
+
+
+def test_fit_weights_the_recordings_only_when_nothing_is_named_and_their_floors_differ():
+    from szdyn.diagnose.diagnosis import FLOOR_SPREAD
+
+    wide = FLOOR_SPREAD + 1
+    # nothing named under a common floor that misdescribes the recordings: the weighted pass names
+    # an effect, and it is the answer; the unweighted one is kept as the other pass
+    d = _ScriptedDiagnosis([("none", {}, wide), ("selected", {})]).fit(_runs())
+    assert d.weighted_seen == [False, True] and d.seen[0] == d.seen[1]
+    assert d.verdict_ == "selected" and d.weighted_ and d.weighting_["weighted"]
+    assert d.weighting_["other_pass"]["verdict"] == "none" and not d.weighting_["other_pass"]["weighted"]
+    assert d.n_runs_ == 20 and d.timings_["unweighted_pass"] == 1.0
+    # the weighted pass names nothing either: the unweighted answer stands, with its own state
+    d = _ScriptedDiagnosis([("unexplained", {}, wide), ("none", {}, 1.0)]).fit(_runs())
+    assert d.weighted_seen == [False, True]
+    assert d.verdict_ == "unexplained" and not d.weighted_ and d.floor_spread_ == wide
+    assert d.weighting_ == {"mode": "fallback", "spread": wide, "weighted": False,
+                            "other_pass": {"weighted": True, "verdict": "none", "selected": [],
+                                           "calibrated_fit_over_floor": pytest.approx(1.1),
+                                           "seconds": 1.0, "model_runs": 10, "failed_runs": 0}}
+    assert d.n_runs_ == 20 and d.timings_["weighted_pass"] == 1.0
+    # a named effect, floors within the spread, weighting off: one unweighted pass; always: weighted
+    for script, kw in [([("selected", {}, wide)], {}), ([("none", {}, FLOOR_SPREAD)], {}),
+                       ([("none", {}, wide)], {"weighting": "off"})]:
+        d = _ScriptedDiagnosis(script, **kw).fit(_runs())
+        assert d.weighted_seen == [False] and d.weighting_["other_pass"] is None
+    d = _ScriptedDiagnosis([("none", {}, wide)], weighting="always").fit(_runs())
+    assert d.weighted_seen == [True] and d.weighting_["weighted"]
+    with pytest.raises(ValueError, match="weighting"):
+        _ScriptedDiagnosis([], weighting="sometimes").fit(_runs())
 
 
 # ----------------------------------------------------------------------------- command errors
@@ -584,9 +619,13 @@ def test_diagnosis_json_schema(viscous):
     assert all("per_mu_k" not in e.get("primary", {}) for e in d["effects"] if e["id"] == "encoder_scale")
     # the floor is assembled from the fit recordings' own parts (RMS of sensor, median of bumps)
     per = d["noise_floor_per_recording"]
-    assert set(per) == {r["recording"] for r in d["location"]["recordings"] if r["role"] == "fit"}
-    s = math.sqrt(np.mean([v["sensor"] ** 2 for v in per.values()]))
-    assert d["noise_floor"] == pytest.approx(math.hypot(s, float(np.median([v["bump"] for v in per.values()]))))
+    assert set(per) == {r["recording"] for r in d["location"]["recordings"]}
+    fit = [v for k, v in per.items() if k not in d["split"]["heldout"]]
+    s = math.sqrt(np.mean([v["sensor"] ** 2 for v in fit]))
+    assert d["noise_floor"] == pytest.approx(math.hypot(s, float(np.median([v["bump"] for v in fit]))))
+    own = [math.hypot(v["sensor"], v["bump"]) for v in per.values()]
+    assert d["weighting"]["spread"] == pytest.approx(max(own) / min(own))
+    assert d["weights"] == {r["recording"]: 1.0 for r in d["location"]["recordings"]}   # unweighted
     # held-out recordings the final model misses beyond the floor are listed, and only those
     after = d["fit"]["after"]["per_recording"]
     beyond = {b["recording"]: b["ratio"] for b in d["heldout_beyond_floor"]}
@@ -602,3 +641,22 @@ def test_null_recordings_give_none(null):
     assert d["selected"] == [] and d["verdict"] == "none"
     assert d["fit"]["after"]["heldout_rmse"] == d["fit"]["before"]["heldout_rmse"]
     assert "Verdict: none" in (out / "report.md").read_text()
+
+
+def test_weighted_diagnosis_of_null_recordings_gives_none(null, tmp_path):
+    """Every recording weighted by its own floor (``--weighting always``): the scores stay
+    consistent (nothing selected: after == before), and the null recordings still give none."""
+    _, _, out = null
+    man = out.parent / "data" / "manifest.toml"
+    assert run_main(["diagnose", str(man), "--out", str(tmp_path / "w"), "--weighting", "always", *SMALL]) == 0
+    d = json.loads((tmp_path / "w" / "diagnosis.json").read_text())
+    assert d["verdict"] == "none" and d["selected"] == []
+    assert set(d["noise_floor_per_recording"]) == {r["recording"] for r in d["location"]["recordings"]}
+    assert d["fit"]["after"]["heldout_rmse"] == pytest.approx(d["fit"]["before"]["heldout_rmse"])
+    assert d["fit"]["after"]["per_recording"] == pytest.approx(d["fit"]["before"]["per_recording"])
+    # each recording's weight is the common floor over its own (sensor and bumps in quadrature),
+    # and the report says that its RMSEs are in these weighted units
+    per = d["noise_floor_per_recording"]
+    assert d["weights"] == pytest.approx({k: d["noise_floor"] / math.hypot(v["sensor"], v["bump"])
+                                          for k, v in per.items()})
+    assert "**Weighted**" in (tmp_path / "w" / "report.md").read_text()

@@ -40,6 +40,13 @@ def _build_parser():
     ap.add_argument("--no-exchange-split", action="store_true",
                     help="when the fit recordings show nothing but a held-out one is missed by more than "
                     "5 noise floors, do not run again with it fitted and a similar fit recording held out")
+    ap.add_argument("--weighting", choices=("fallback", "always", "off"), default="fallback",
+                    help="weight each recording's residual by the common noise floor over its own, so that "
+                    "recordings whose impact bumps do not reproduce count less: 'fallback' (default) only in "
+                    "a second pass when the first names no effect and the recordings' own floors differ "
+                    "by more than 3x, 'always', or 'off'")
+    ap.add_argument("--weighted", action="store_const", const="always", dest="weighting",
+                    help="the same as --weighting always")
     ap.add_argument("--max-jac", type=int, default=4, help="Jacobians per nonlinear fit (default 4; calibration twice)")
     ap.add_argument("--polish-jac", type=int, help="Jacobians to continue a budget-stopped calibration or "
                     "leading candidate with (default twice --max-jac; 0: never)")
@@ -109,7 +116,7 @@ def diagnose_command(argv) -> int:
     d = Diagnosis(cands, shortlist=args.shortlist, nominate_r2=args.nominate_r2,
                   probe_screen=not args.no_probe_screen, max_jac=args.max_jac,
                   polish_jac=args.polish_jac, rivals=args.rivals, exchange_split=not args.no_exchange_split,
-                  workers=args.workers,
+                  weighting=args.weighting, workers=args.workers,
                   log=log, progress=progress).fit(recs)
     js = write_report(d, args.out)
     sel = ", ".join(js["selected"]) or d.verdict_

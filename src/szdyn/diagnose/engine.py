@@ -135,6 +135,8 @@ class FeatureModel:
         self._pool = None
         self.n_runs_ = 0
         self.n_failed_ = 0
+        #: residual weight per recording index (default 1; see ``Diagnosis(weighted=True)``)
+        self.weights = {}
 
     # -- pool ------------------------------------------------------------------------------
     def _executor(self):
@@ -214,15 +216,17 @@ class FeatureModel:
         return out
 
     def residuals(self, points, which: Sequence[int]):
-        """Measured minus model band speed (rad/s), concatenated over ``which``, per point.
+        """Measured minus model band speed (rad/s), concatenated over ``which``, per point,
+        each recording's block times its weight in ``weights`` (default 1).
 
         Returns
         -------
         ndarray, shape (n_points, sum m_i)
         """
         sp = self.speeds(points, which)
+        w = np.concatenate([np.full(self.recordings[i].y.size, self.weights.get(i, 1.0)) for i in which])
         y = np.concatenate([self.recordings[i].y for i in which])
-        return np.array([y - np.concatenate(row) for row in sp])
+        return np.array([w * (y - np.concatenate(row)) for row in sp])
 
 
 def rms(x) -> float:

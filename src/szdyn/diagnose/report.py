@@ -20,7 +20,7 @@ from ..io import atomic_write_text, write_json
 from ..plots import _pyplot, save_png
 from .candidates import CANDIDATES, FIXED_UNIDENTIFIED, primary_std
 from .data import FEATURE_DT, WINDOW_S
-from .diagnosis import AMPLITUDE_PROBES
+from .diagnosis import AMPLITUDE_PROBES, FLOOR_SPREAD
 from .locate import feature_table
 
 __all__ = ["write_report", "to_json", "updated_parameters"]
@@ -37,6 +37,14 @@ UNITS = {"rmse": "rad/s", "heldout_rmse": "rad/s", "noise_floor": "rad/s", "t0":
                            "that the effect explains (1; linearised for candidates not refitted)",
          "per_mu_k (effect primary)": "the effect parameter's own unit (mu_k is 1)",
          "k_c": "N*m/rad", "b_c": "N*m*s/rad", "k_imp": "N/m^n", "b_imp": "N*s/m^(n+1)", "mu_s": "1", "mu_k": "1"}
+
+
+_WEIGHTED = ("**Weighted**: each recording's residual is multiplied by the common floor over its own "
+             "floor, so that recordings whose impact bumps do not reproduce (they flip between "
+             "tracking and slipping with the wheel phase) count less and reproducible ones more: {}. "
+             "The base model was calibrated again with these weights, and every RMSE below (fit, "
+             "held-out, per recording, before and after) is in these weighted units: rad/s at the "
+             "common floor, so that a correct model is near 1x the floor on every recording.")
 
 
 def _f(x, fmt=".4g"):
@@ -211,6 +219,8 @@ def _to_json(d) -> dict:
         "split": {"heldout": [r.name for r in d.recordings_ if r.role != "fit"], "first": d.first_split_},
         "noise_floor": d.floor_, "noise_floor_parts": d.floor_parts_,
         "noise_floor_per_recording": d.floor_per_recording_,
+        "weights": d.weights_,
+        "weighting": d.weighting_,
         "mismatch_significant": bool(d.mismatch_),
         "rule": d.rule.__dict__,
         "location": {"recordings": d.location_["recordings"], "follows": d.location_["follows"]},
@@ -283,15 +293,36 @@ def _report_md(d, js) -> str:
               + f" (the fit recording most like it: same travel direction, then nearest speed, then "
               "nearest load). First pass: "
               f"{f1['seconds']:.0f} s, {f1['model_runs']} model runs.", ""]
+    o = d.weighting_["other_pass"]
+    if o is not None:
+        said = (f"{o['verdict']}" + (f" ({', '.join(o['selected'])})" if o["selected"] else "")
+                + f", the calibrated base {o['calibrated_fit_over_floor']:.2f}x the floor in its units; "
+                f"{o['seconds']:.0f} s, {o['model_runs']} model runs")
+        if d.weighted_:
+            L += [f"**Weighted pass.** The unweighted diagnosis named no effect (it said {said}), and the "
+                  f"recordings' own noise floors differ {d.weighting_['spread']:.1f}x (more than "
+                  f"{FLOOR_SPREAD:g}x): the common floor hid what the reproducible recordings show. This "
+                  "diagnosis is the pass with each recording weighted by its own floor (see What was "
+                  "compared).", ""]
+        else:
+            L += [f"**Weighted pass tried.** The recordings' own noise floors differ "
+                  f"{d.weighting_['spread']:.1f}x (more than {FLOOR_SPREAD:g}x), so the diagnosis also ran "
+                  f"with each recording weighted by its own floor; that pass named no effect either "
+                  f"(it said {said}), and this unweighted answer stands.", ""]
     L += ["## What was compared", "", COMPARED + ".", "",
           "Recordings: " + ", ".join(f"`{r.name}` ({r.role}, {r.load_kg:g} kg)" for r in d.recordings_) + ".", "",
           f"Noise floor {_f(d.floor_)} rad/s = sqrt(sensor {_f(d.floor_parts_['sensor'])}^2 + "
           f"impact bumps {_f(d.floor_parts_['bump'])}^2) (see `szdyn.diagnose.noise`): the RMS of the "
-          "fit recordings' sensor noise and the median of their bumps. Per fit recording (sensor, bumps, "
+          "fit recordings' sensor noise and the median of their bumps. Per recording (sensor, bumps, "
           "rad/s): " + "; ".join(f"`{k}` {_f(v['sensor'], '.3g')}, {_f(v['bump'], '.3g')}"
-                                  for k, v in d.floor_per_recording_.items()) + ". Where these differ a lot "
-          "(recordings that flip between tracking and slipping with the wheel phase have large bumps), "
-          "the common floor can hide an effect that the reproducible recordings show.", "",
+                                  for k, v in d.floor_per_recording_.items())
+          + f"; their own floors differ {d.floor_spread_:.1f}x. " + (_WEIGHTED.format(
+              ", ".join(f"`{k}` {w:.2f}" for k, w in d.weights_.items())) if d.weighted_ else
+              "Where these differ a lot (recordings that flip between tracking and slipping with the "
+              "wheel phase have large bumps), the common floor can hide an effect that the "
+              "reproducible recordings show (`--weighting always` weights each recording by its own "
+              "floor; by default that is tried when nothing is named and they differ by more than "
+              f"{FLOOR_SPREAD:g}x)."), "",
           "## Calibration (base model, fit recordings)", "",
           "| coefficient | value | std | unit |", "|---|---|---|---|"]
     for k in ("k_c", "b_c", "k_imp", "mu_s", "mu_k"):
