@@ -45,8 +45,6 @@ def _build_parser():
                     "recordings whose impact bumps do not reproduce count less: 'fallback' (default) only in "
                     "a second pass when the first names no effect and the recordings' own floors differ "
                     "by more than 3x, 'always', or 'off'")
-    ap.add_argument("--weighted", action="store_const", const="always", dest="weighting",
-                    help="the same as --weighting always")
     ap.add_argument("--max-jac", type=int, default=4, help="Jacobians per nonlinear fit (default 4; calibration twice)")
     ap.add_argument("--polish-jac", type=int, help="Jacobians to continue a budget-stopped calibration or "
                     "leading candidate with (default twice --max-jac; 0: never)")
