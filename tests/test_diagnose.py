@@ -479,7 +479,7 @@ def test_fit_weights_the_recordings_only_when_nothing_is_named_and_their_floors_
     d = _ScriptedDiagnosis([("unexplained", {}, wide), ("none", {}, 1.0)]).fit(_runs())
     assert d.weighted_seen == [False, True]
     assert d.verdict_ == "unexplained" and not d.weighted_ and d.floor_spread_ == wide
-    assert d.weighting_ == {"mode": "fallback", "spread": wide, "weighted": False,
+    assert d.weighting_ == {"mode": "fallback", "spread": wide, "threshold": FLOOR_SPREAD, "weighted": False,
                             "other_pass": {"weighted": True, "verdict": "none", "selected": [],
                                            "calibrated_fit_over_floor": pytest.approx(1.1),
                                            "seconds": 1.0, "model_runs": 10, "failed_runs": 0}}
@@ -664,3 +664,22 @@ def test_weighted_diagnosis_of_null_recordings_gives_none(null, tmp_path):
     assert d["weights"] == pytest.approx({k: d["noise_floor"] / math.hypot(v["sensor"], v["bump"])
                                           for k, v in per.items()})
     assert "**Weighted**" in (tmp_path / "w" / "report.md").read_text()
+
+
+def test_fallback_weighted_pass_on_null_recordings_keeps_none(null, tmp_path, monkeypatch):
+    """The default fallback, made to fire (any spread of the own floors): the weighted pass names
+    nothing either, so the unweighted answer and its numbers stand, and both say so."""
+    from szdyn.diagnose import diagnosis
+
+    _, d0, out = null
+    monkeypatch.setattr(diagnosis, "FLOOR_SPREAD", 0.0)
+    man = out.parent / "data" / "manifest.toml"
+    assert run_main(["diagnose", str(man), "--out", str(tmp_path / "f"), *SMALL]) == 0
+    d = json.loads((tmp_path / "f" / "diagnosis.json").read_text())
+    assert d["verdict"] == "none" and d["weighting"]["mode"] == "fallback" and not d["weighting"]["weighted"]
+    other = d["weighting"]["other_pass"]
+    assert other["weighted"] and other["verdict"] in ("none", "unexplained") and other["selected"] == []
+    assert d["fit"] == d0["fit"] and set(d["weights"].values()) == {1.0}
+    assert d["cost"]["seconds"]["weighted_pass"] == other["seconds"] > 0
+    assert "**Weighted pass tried.**" in (tmp_path / "f" / "report.md").read_text()
+

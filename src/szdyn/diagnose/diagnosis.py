@@ -136,7 +136,7 @@ class Diagnosis:
         own floor).
     weighting_ : dict
         ``mode`` (the ``weighting`` parameter), ``spread`` (``floor_spread_`` of the first pass),
-        ``weighted`` (``weighted_``) and ``other_pass``: when a fallback pass ran, what the pass
+        ``threshold`` (:data:`FLOOR_SPREAD`), ``weighted`` (``weighted_``) and ``other_pass``: when a fallback pass ran, what the pass
         that is *not* the answer said (``weighted``, ``verdict``, ``selected``,
         ``calibrated_fit_over_floor``, ``seconds``, ``model_runs``, ``failed_runs``; included in
         ``timings_`` and ``n_runs_``), else None.
@@ -365,8 +365,8 @@ class Diagnosis:
         if self.weighting not in WEIGHTINGS:
             raise ValueError(f"weighting must be one of {WEIGHTINGS}, got {self.weighting!r}")
         recs = self._pass_with_exchange(list(recordings), weighted=self.weighting == "always")
-        self.weighting_ = {"mode": self.weighting, "spread": self.floor_spread_, "weighted": self.weighted_,
-                           "other_pass": None}
+        self.weighting_ = {"mode": self.weighting, "spread": self.floor_spread_, "threshold": FLOOR_SPREAD,
+                           "weighted": self.weighted_, "other_pass": None}
         if self.weighting == "fallback" and self.verdict_ != "selected" and self.floor_spread_ > FLOOR_SPREAD:
             self.log(f"no effect named, and the recordings' own noise floors differ {self.floor_spread_:.1f}x "
                      f"(> {FLOOR_SPREAD:g}): running again with each recording weighted by its own floor")

@@ -20,7 +20,7 @@ from ..io import atomic_write_text, write_json
 from ..plots import _pyplot, save_png
 from .candidates import CANDIDATES, FIXED_UNIDENTIFIED, primary_std
 from .data import FEATURE_DT, WINDOW_S
-from .diagnosis import AMPLITUDE_PROBES, FLOOR_SPREAD
+from .diagnosis import AMPLITUDE_PROBES
 from .locate import feature_table
 
 __all__ = ["write_report", "to_json", "updated_parameters"]
@@ -301,12 +301,12 @@ def _report_md(d, js) -> str:
         if d.weighted_:
             L += [f"**Weighted pass.** The unweighted diagnosis named no effect (it said {said}), and the "
                   f"recordings' own noise floors differ {d.weighting_['spread']:.1f}x (more than "
-                  f"{FLOOR_SPREAD:g}x): the common floor hid what the reproducible recordings show. This "
+                  f"{d.weighting_['threshold']:g}x): the common floor hid what the reproducible recordings show. This "
                   "diagnosis is the pass with each recording weighted by its own floor (see What was "
                   "compared).", ""]
         else:
             L += [f"**Weighted pass tried.** The recordings' own noise floors differ "
-                  f"{d.weighting_['spread']:.1f}x (more than {FLOOR_SPREAD:g}x), so the diagnosis also ran "
+                  f"{d.weighting_['spread']:.1f}x (more than {d.weighting_['threshold']:g}x), so the diagnosis also ran "
                   f"with each recording weighted by its own floor; that pass named no effect either "
                   f"(it said {said}), and this unweighted answer stands.", ""]
     L += ["## What was compared", "", COMPARED + ".", "",
@@ -322,7 +322,7 @@ def _report_md(d, js) -> str:
               "wheel phase have large bumps), the common floor can hide an effect that the "
               "reproducible recordings show (`--weighting always` weights each recording by its own "
               "floor; by default that is tried when nothing is named and they differ by more than "
-              f"{FLOOR_SPREAD:g}x)."), "",
+              f"{d.weighting_['threshold']:g}x)."), "",
           "## Calibration (base model, fit recordings)", "",
           "| coefficient | value | std | unit |", "|---|---|---|---|"]
     for k in ("k_c", "b_c", "k_imp", "mu_s", "mu_k"):
