@@ -135,7 +135,7 @@ class FeatureModel:
         self._pool = None
         self.n_runs_ = 0
         self.n_failed_ = 0
-        #: residual weight per recording index (default 1; see ``Diagnosis(weighted=True)``)
+        #: residual weight per recording index (default 1; see ``Diagnosis(weighting=...)``)
         self.weights = {}
 
     # -- pool ------------------------------------------------------------------------------

@@ -36,15 +36,18 @@ UNITS = {"rmse": "rad/s", "heldout_rmse": "rad/s", "noise_floor": "rad/s", "t0":
          "score (effect)": "share of the calibrated model's excess residual energy over the noise floor "
                            "that the effect explains (1; linearised for candidates not refitted)",
          "per_mu_k (effect primary)": "the effect parameter's own unit (mu_k is 1)",
+         "weights": "common noise floor / the recording's own (1); when weighted, every fit and "
+                    "held-out RMSE is of the weighted residual (rad/s at the common floor)",
          "k_c": "N*m/rad", "b_c": "N*m*s/rad", "k_imp": "N/m^n", "b_imp": "N*s/m^(n+1)", "mu_s": "1", "mu_k": "1"}
 
 
 _WEIGHTED = ("**Weighted**: each recording's residual is multiplied by the common floor over its own "
              "floor, so that recordings whose impact bumps do not reproduce (they flip between "
              "tracking and slipping with the wheel phase) count less and reproducible ones more: {}. "
-             "The base model was calibrated again with these weights, and every RMSE below (fit, "
-             "held-out, per recording, before and after) is in these weighted units: rad/s at the "
-             "common floor, so that a correct model is near 1x the floor on every recording.")
+             "The base model was calibrated again with these weights, and every fit and held-out "
+             "RMSE below (calibration, candidates, before and after, per recording) is in these "
+             "weighted units: rad/s at the common floor, so that a correct model is near 1x the floor "
+             "on every recording. The location section and the plots show the unweighted residual.")
 
 
 def _f(x, fmt=".4g"):
