@@ -18,6 +18,7 @@ class _Parser(argparse.ArgumentParser):
 
 def _build_parser():
     from .candidates import CANDIDATES
+    from .diagnosis import FLOOR_SPREAD
 
     ap = _Parser(prog="python -m szdyn.run diagnose",
                  description="Calibrate the model to recordings, locate the mismatch, name the missing "
@@ -44,7 +45,7 @@ def _build_parser():
                     help="weight each recording's residual by the common noise floor over its own, so that "
                     "recordings whose impact bumps do not reproduce count less: 'fallback' (default) only in "
                     "a second pass when the first names no effect and the recordings' own floors differ "
-                    "by more than 3x, 'always', or 'off'")
+                    f"by more than {FLOOR_SPREAD:g}x, 'always', or 'off'")
     ap.add_argument("--max-jac", type=int, default=4, help="Jacobians per nonlinear fit (default 4; calibration twice)")
     ap.add_argument("--polish-jac", type=int, help="Jacobians to continue a budget-stopped calibration or "
                     "leading candidate with (default twice --max-jac; 0: never)")
