@@ -19,7 +19,7 @@ from szdyn.diagnose.candidates import CALIBRATED, CANDIDATES, primary_std
 from szdyn.diagnose.command import choose_heldout
 from szdyn.diagnose.diagnosis import Diagnosis
 from szdyn.diagnose.engine import apply_sensor_transform, model_speed
-from szdyn.diagnose.fit import Hypothesis, fit_hypothesis, jacobian
+from szdyn.diagnose.fit import Hypothesis, fit_hypothesis, jacobian, linear_step
 from szdyn.diagnose.locate import FEATURES
 from szdyn.diagnose.selection import Decision, SelectionRule, decide, nominate, rivals, screen
 from szdyn.diagnose.split import exchange_pairs, exchanged
@@ -279,6 +279,63 @@ def test_fit_stopped_by_its_budget_can_be_continued_to_the_optimum():
         assert more.values[k] == pytest.approx(v, rel=1e-3), k
 
 
+class _LinearModel(_CurvedModel):
+    """A residual linear in the fit coordinates (log coefficients, ``dmu_s`` as ``mu_s - mu_k``),
+    zero at TARGET: one Gauss-Newton step from anywhere is exact."""
+
+    M = np.random.default_rng(3).normal(size=(15, 5))
+
+    def residuals(self, points, which):
+        t = self.TARGET
+        out = []
+        for mc, _ in points:
+            z = [math.log(mc[k] / t[k]) for k in ("k_c", "b_c", "k_imp", "mu_k")]
+            z.append(math.log((mc["mu_s"] - mc["mu_k"]) / (t["mu_s"] - t["mu_k"])))
+            out.append(np.concatenate([self.M @ np.array(z)] * len(which)))
+        return out
+
+
+class _NoisyCurvedModel(_CurvedModel):
+    """The curved stand-in plus a residual no coefficient changes (the noise of a recording)."""
+
+    NOISE = np.random.default_rng(4).normal(scale=0.05, size=30)
+
+    def residuals(self, points, which):
+        return [np.append(r, self.NOISE) for r in super().residuals(points, which)]
+
+
+def test_linear_step_is_the_gauss_newton_step_tried_with_model_runs():
+    model, h = _LinearModel(), Hypothesis(START)
+    first = fit_hypothesis(model, h, [0], max_jac=1)   # one Jacobian: not yet at TARGET
+    # the step from the (exact) Jacobian lands on TARGET; of the tried fractions 1 is the best
+    x, rss = linear_step(model, h, first, [0])
+    assert rss < 1e-16 * first.rss_fit
+    for k, v in _LinearModel.TARGET.items():
+        assert h.values(x)[k] == pytest.approx(v, rel=1e-6), k
+    # only half of it: a quarter of the residual energy (the residual is linear)
+    x, rss = linear_step(model, h, first, [0], fractions=(0.5,))
+    assert rss == pytest.approx(0.25 * first.rss_fit, rel=1e-6)
+
+
+def test_a_stalled_calibration_is_restarted_from_its_linear_step_and_a_finished_one_is_kept():
+    model, h = _CurvedModel(), Hypothesis(START)
+    d = Diagnosis(unstall=2)
+    d.floor_ = 1e-3
+    stalled = fit_hypothesis(model, h, [0], max_jac=1)   # stands in for a fit that stopped early
+    cal = d._unstall(model, h, stalled, [0])
+    assert cal is not stalled and 1 <= cal.extra["unstalled"] <= 2
+    assert cal.extra["njac"] > stalled.extra["njac"] and cal.rss_fit < 1e-3 * stalled.rss_fit
+    # at the optimum the linear step fits no better: the calibration is kept as it is (with a
+    # residual the coefficients cannot fit, as in real recordings: an exact zero would make any
+    # round-off change look significant to a scale-free criterion)
+    noisy = _NoisyCurvedModel()
+    done = fit_hypothesis(noisy, h, [0], max_jac=30)
+    assert not done.budget_hit
+    assert d._unstall(noisy, h, done, [0]) is done
+    # unstall=0: never tried
+    assert Diagnosis(unstall=0)._unstall(model, h, stalled, [0]) is stalled
+
+
 class _WantsNegativeTraction(_CurvedModel):
     """The curved stand-in plus a residual that a negative mu_t would reduce (the real model
     rejects mu_t < 0)."""
@@ -525,7 +582,7 @@ def test_diagnose_nomination_threshold_outside_0_1_is_a_clear_error(tmp_path, ca
     assert "--nominate-r2" in err and "Traceback" not in err
 
 
-@pytest.mark.parametrize("flag", ["--polish-jac", "--rivals"])
+@pytest.mark.parametrize("flag", ["--polish-jac", "--rivals", "--unstall"])
 def test_diagnose_negative_budget_is_a_clear_error(tmp_path, capsys, flag):
     m = tmp_path / "m.toml"
     m.write_text("")

@@ -49,6 +49,10 @@ def _build_parser():
     ap.add_argument("--max-jac", type=int, default=4, help="Jacobians per nonlinear fit (default 4; calibration twice)")
     ap.add_argument("--polish-jac", type=int, help="Jacobians to continue a budget-stopped calibration or "
                     "leading candidate with (default twice --max-jac; 0: never)")
+    ap.add_argument("--unstall", type=int, default=2,
+                    help="when the calibration ends above the mismatch threshold, at most this many times "
+                    "try its full linear step and, when that fits clearly better (a stall), calibrate again "
+                    "from there (default 2; 0: never)")
     ap.add_argument("--workers", type=int, help="processes for model runs (default: CPU count)")
     ap.add_argument("--quiet", action="store_true", help="no progress on stderr")
     return ap
@@ -83,6 +87,8 @@ def diagnose_command(argv) -> int:
         raise UserInputError(f"diagnose: --max-jac must be >= 1, got {args.max_jac}")
     if args.polish_jac is not None and args.polish_jac < 0:
         raise UserInputError(f"diagnose: --polish-jac must be >= 0, got {args.polish_jac}")
+    if args.unstall < 0:
+        raise UserInputError(f"diagnose: --unstall must be >= 0, got {args.unstall}")
     if args.workers is not None and args.workers < 1:
         raise UserInputError(f"diagnose: --workers must be >= 1, got {args.workers}")
     cands = None
@@ -115,7 +121,7 @@ def diagnose_command(argv) -> int:
     d = Diagnosis(cands, shortlist=args.shortlist, nominate_r2=args.nominate_r2,
                   probe_screen=not args.no_probe_screen, max_jac=args.max_jac,
                   polish_jac=args.polish_jac, rivals=args.rivals, exchange_split=not args.no_exchange_split,
-                  weighting=args.weighting, workers=args.workers,
+                  weighting=args.weighting, unstall=args.unstall, workers=args.workers,
                   log=log, progress=progress).fit(recs)
     js = write_report(d, args.out)
     sel = ", ".join(js["selected"]) or d.verdict_

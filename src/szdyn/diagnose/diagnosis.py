@@ -20,6 +20,10 @@ Steps (each a module of its own):
    :data:`FLOOR_SPREAD`, run steps 1-5 again with each recording weighted by its own floor, and
    take that answer if it names an effect (``weighting="fallback"``).
 
+A calibration that ends above the mismatch threshold is checked for a stall: its full linear
+(Gauss-Newton) step is tried with model runs, and where that fits clearly better the calibration
+starts again from there (``unstall``).
+
 Budgets: every nonlinear fit is capped in Jacobians (``max_jac``; calibration ``2 max_jac``).
 A fit stopped by its cap is *continued* with ``polish_jac`` more where the answer depends on
 it: the calibration when it is still above the mismatch threshold (else a null case would be
@@ -38,7 +42,7 @@ import numpy as np
 from .candidates import CANDIDATES, Candidate
 from .detect import detectable_amplitude
 from .engine import FeatureModel, rms
-from .fit import Hypothesis, fit_hypothesis, jacobian
+from .fit import Hypothesis, fit_hypothesis, jacobian, linear_step
 from .locate import follows, locate
 from .noise import bump_noise, sensor_noise
 from .selection import SelectionRule, decide, nominate, rivals, screen
@@ -93,6 +97,11 @@ class Diagnosis:
     polish_jac : int, optional
         Jacobians with which a budget-stopped calibration or leading candidate is continued
         (default ``2 max_jac``; 0: never).
+    unstall : int
+        When the calibration ends above the mismatch threshold, at most this many times try its
+        full linearised (Gauss-Newton) step with model runs and, when that fits better by more
+        than ``rule.min_dbic`` in the information criterion, calibrate again from there (a
+        stalled fit, not a minimum: :func:`~.fit.linear_step`). 0: never.
     rivals : int
         When the candidate the shortlist selects leaves the fit above ``rule.rival_floor`` noise
         floors, the next this many of the linear screening are refitted too before deciding
@@ -197,7 +206,8 @@ class Diagnosis:
     def __init__(self, candidates=None, rule: SelectionRule | None = None, *, shortlist: int = 2,
                  nominate_r2: float | None = 0.3, probe_screen: bool = True, max_jac: int = 4,
                  polish_jac: int | None = None, rivals: int = 2, exchange_split: bool = True,
-                 weighting: str = "fallback", workers: int | None = None, log=None, progress=None):
+                 weighting: str = "fallback", unstall: int = 2, workers: int | None = None, log=None,
+                 progress=None):
         self.candidates = candidates
         self.rule = rule or SelectionRule()
         self.shortlist = shortlist
@@ -208,6 +218,7 @@ class Diagnosis:
         self.rivals = rivals
         self.exchange_split = exchange_split
         self.weighting = weighting
+        self.unstall = unstall
         self.workers = workers
         self.log = log or (lambda msg: None)
         self.progress = progress
@@ -346,6 +357,22 @@ class Diagnosis:
         rss = [float(r @ r) for r in R]
         k = int(np.argmin(rss[1:]))
         return probes[k] if rss[1 + k] < rss[0] else None
+
+    def _unstall(self, model, h: Hypothesis, cal, fit_idx):
+        """Calibrate again from the calibration's linear step while that step fits clearly better
+        (at most ``unstall`` times; see the class docstring)."""
+        for k in range(self.unstall):
+            x, rss = linear_step(model, h, cal, fit_idx)
+            if self.rule.indistinguishable(rss_selected=rss, rss_other=cal.rss_fit, n_fit=cal.n_fit):
+                break   # (also when the step fits worse)
+            self.log(f"the calibration stalled: its linear step fits at {math.sqrt(rss / cal.n_fit):.4g} rad/s "
+                     f"(ended at {cal.rmse_fit:.4g}); calibrating again from there")
+            nxt = fit_hypothesis(model, h, fit_idx, x0=x, max_jac=2 * self.max_jac, tol=FIT_TOL)
+            nxt.extra.update(njac=nxt.extra["njac"] + cal.extra["njac"], unstalled=k + 1,
+                             continued=cal.extra.get("continued", False))
+            self.log(f"calibrated: fit RMSE {nxt.rmse_fit:.4g} rad/s ({nxt.rmse_fit / self.floor_:.2f}x the floor)")
+            cal = nxt
+        return cal
 
     def fit(self, recordings) -> "Diagnosis":
         """Run the diagnosis on prepared recordings (:func:`.data.prepare`).
@@ -495,6 +522,11 @@ class Diagnosis:
                 self.log(f"calibrated: fit RMSE {cal.rmse_fit:.4g} rad/s "
                          f"({cal.rmse_fit / self.floor_:.2f}x the floor)")
                 lap("calibrate_continued")
+            if self.mismatch_ and self.unstall > 0:
+                cal = self._unstall(model, base_h, cal, fit_idx)
+                self.calibrated_ = cal
+                self.mismatch_ = self.rule.mismatch(cal.rmse_fit, self.floor_)
+                lap("calibrate_unstalled")
 
             # 3. locate (all recordings, calibrated base)
             def baseline():

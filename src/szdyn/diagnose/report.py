@@ -94,7 +94,9 @@ def _status(res) -> str:
         (f", restarted from {res.extra['restart']}" if res.extra.get("restart") else "") + \
         (f", refitted from {res.extra['ablation_of']}'s coefficients (ablation)"
          if res.extra.get("ablation_of") else "") + \
-        (", continued once" if res.extra.get("continued") else "")
+        (", continued once" if res.extra.get("continued") else "") + \
+        (f", restarted {res.extra['unstalled']}x from its linear step (a stall)"
+         if res.extra.get("unstalled") else "")
     return f"{how} after {res.extra['njac']} Jacobians{more}"
 
 
