@@ -68,6 +68,12 @@ class Hypothesis:
         hi = [math.log(p.hi) if p.log else p.hi for p in self.params]
         return np.array(lo), np.array(hi)
 
+    def inside(self, x) -> np.ndarray:
+        """``x`` clipped to just inside the bounds (``least_squares`` wants a strictly feasible start)."""
+        lo, hi = self.bounds()
+        span = hi - lo
+        return np.clip(np.asarray(x, dtype=float), lo + 1e-9 * span, hi - 1e-9 * span)
+
     def steps(self) -> np.ndarray:
         """Finite-difference steps / scales in fit coordinates."""
         return np.array([p.probe for p in self.params])
@@ -226,9 +232,7 @@ def fit_hypothesis(model: FeatureModel, hyp: Hypothesis, which, *, x0=None, max_
     if previous is not None:
         x0 = previous.x
     lo, hi = hyp.bounds()
-    x0 = hyp.x_start() if x0 is None else np.asarray(x0, dtype=float)
-    span = hi - lo
-    x0 = np.clip(x0, lo + 1e-9 * span, hi - 1e-9 * span)
+    x0 = hyp.inside(hyp.x_start() if x0 is None else x0)
     memo = {}
 
     def fun(x):
@@ -302,9 +306,7 @@ def linear_step(model: FeatureModel, hyp: Hypothesis, res: FitResult, which,
     f0 = model.residuals([hyp.point(res.x)], which)[0]   # cached: the fit evaluated it
     # residual(x + d) ~ f0 - J d (J is d model speed / dx)
     d = np.linalg.lstsq(res.J, f0, rcond=None)[0]
-    lo, hi = hyp.bounds()
-    span = hi - lo
-    xs = [np.clip(res.x + a * d, lo + 1e-9 * span, hi - 1e-9 * span) for a in fractions]
+    xs = [hyp.inside(res.x + a * d) for a in fractions]
     R = model.residuals([hyp.point(x) for x in xs], which)
     rss = [float(r @ r) for r in R]
     k = int(np.argmin(rss))
