@@ -336,6 +336,20 @@ def test_a_stalled_calibration_is_restarted_from_its_linear_step_and_a_finished_
     assert Diagnosis(unstall=0)._unstall(model, h, stalled, [0]) is stalled
 
 
+def test_a_stalled_refit_is_restarted_within_its_own_budget_and_keeps_its_start():
+    model, h = _CurvedModel(), Hypothesis(START)
+    d = Diagnosis(unstall=2)
+    d.floor_ = 1e-3
+    stalled = fit_hypothesis(model, h, [0], max_jac=1)
+    stalled.extra.update(start="linear step", restart="the uncalibrated coefficients (second start)")
+    res = d._unstall(model, h, stalled, [0], what="refit of a candidate", max_jac=1)
+    assert res is not stalled and res.rss_fit < stalled.rss_fit
+    assert res.extra["start"] == "linear step"
+    assert res.extra["restart"] == "the uncalibrated coefficients (second start)"
+    # each new fit is held to the refit's budget (1 Jacobian, plus the one at its end point)
+    assert res.extra["njac"] <= stalled.extra["njac"] + 2 * res.extra["unstalled"]
+
+
 class _WantsNegativeTraction(_CurvedModel):
     """The curved stand-in plus a residual that a negative mu_t would reduce (the real model
     rejects mu_t < 0)."""
@@ -740,3 +754,31 @@ def test_fallback_weighted_pass_on_null_recordings_keeps_none(null, tmp_path, mo
     assert d["cost"]["seconds"]["weighted_pass"] == other["seconds"] > 0
     assert "**Weighted pass tried.**" in (tmp_path / "f" / "report.md").read_text()
 
+
+
+def test_models_sharing_a_cache_run_each_point_once_whatever_the_roles(null):
+    """A second pass (weighted, or with the split exchanged) repeats runs of the first: with a
+    shared cache they are not run again, and give the same speeds with the roles reordered."""
+    from dataclasses import replace
+
+    from szdyn.diagnose.data import prepare
+    from szdyn.diagnose.engine import FeatureModel
+    from szdyn.manifest import read_manifest
+
+    _, _, out = null
+    recs = prepare(read_manifest(out.parent / "data" / "manifest.toml"))[:2]
+    point = [({"mu_k": 0.24}, {})]
+    shared = {}
+    with FeatureModel(recs, workers=1, cache=shared) as first:
+        v1 = first.speeds(point, [0, 1])[0]
+    assert first.n_runs_ == 2
+    swapped = [replace(recs[1], role="heldout"), recs[0]]
+    with FeatureModel(swapped, workers=1, cache=shared) as second:
+        v2 = second.speeds(point, [1, 0])[0]
+        assert second.n_runs_ == 0
+        second.speeds([({"mu_k": 0.25}, {})], [0])
+        assert second.n_runs_ == 1                        # a new point is run
+    assert all(np.array_equal(a, b) for a, b in zip(v1, v2))
+    with FeatureModel(recs, workers=1) as own:            # default: a cache of its own
+        own.speeds(point, [0])
+        assert own.n_runs_ == 1

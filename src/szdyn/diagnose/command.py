@@ -50,9 +50,9 @@ def _build_parser():
     ap.add_argument("--polish-jac", type=int, help="Jacobians to continue a budget-stopped calibration or "
                     "leading candidate with (default twice --max-jac; 0: never)")
     ap.add_argument("--unstall", type=int, default=2,
-                    help="when the calibration ends above the mismatch threshold, at most this many times "
-                    "try its full linear step and, when that fits clearly better (a stall), calibrate again "
-                    "from there (default 2; 0: never)")
+                    help="when the calibration or a candidate's refit ends above the mismatch threshold, at "
+                    "most this many times try its full linear step and, when that fits clearly better (a "
+                    "stall), fit again from there (default 2; 0: never)")
     ap.add_argument("--workers", type=int, help="processes for model runs (default: CPU count)")
     ap.add_argument("--quiet", action="store_true", help="no progress on stderr")
     return ap

@@ -117,6 +117,10 @@ class FeatureModel:
         Processes (default: CPU count, at most 8); 1 runs in this process.
     progress : callable(int), optional
         Called with the number of model runs finished, after each one (for a progress bar).
+    cache : dict, optional
+        Runs to share with other models of the same recordings (keyed by recording name and
+        parameter changes, so a model with the roles or order of the recordings changed reuses
+        them); default: a cache of its own.
 
     Attributes
     ----------
@@ -127,11 +131,12 @@ class FeatureModel:
         at rest, which the fit treats as a very poor point).
     """
 
-    def __init__(self, recordings: Sequence[Prepared], workers: int | None = None, progress=None):
+    def __init__(self, recordings: Sequence[Prepared], workers: int | None = None, progress=None,
+                 cache: dict | None = None):
         self.recordings = list(recordings)
         self.workers = max(1, min(8, os.cpu_count() or 1) if workers is None else int(workers))
         self.progress = progress
-        self._cache: dict = {}
+        self._cache: dict = {} if cache is None else cache
         self._pool = None
         self.n_runs_ = 0
         self.n_failed_ = 0
@@ -164,9 +169,10 @@ class FeatureModel:
         todo = [k for k in dict.fromkeys(keys) if k not in self._cache]
         if not todo:
             return
+        index = {r.name: i for i, r in enumerate(self.recordings)}
         tasks = []
-        for i, ck in todo:
-            r = self.recordings[i]
+        for name, ck in todo:
+            r = self.recordings[index[name]]
             tasks.append((r.params.to_dict(), r.drive, r.t0, r.t1, dict(ck)))
         pool = self._executor()
         if pool is None:
@@ -199,14 +205,14 @@ class FeatureModel:
         list (per point) of list (per recording) of ndarray, shape (m_i,)
             Smoothed band speed (rad/s) at each recording's ``t_feat``.
         """
-        keys = [(i, _key(mc)) for mc, _ in points for i in which]
+        keys = [(self.recordings[i].name, _key(mc)) for mc, _ in points for i in which]
         self._run_all(keys)
         out = []
         for mc, sc in points:
             row = []
             for i in which:
                 r = self.recordings[i]
-                res = self._cache[(i, _key(mc))]
+                res = self._cache[(r.name, _key(mc))]
                 if res is None:
                     row.append(np.zeros_like(r.y))
                     continue
