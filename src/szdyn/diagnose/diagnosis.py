@@ -368,7 +368,7 @@ class Diagnosis:
         res : FitResult
             The fit (of ``h`` on ``fit_idx``) to check.
         what : str
-            Its name in the log ("calibration", or the candidate's id for a refit).
+            Its name in the log ("calibration", or "refit of <candidate id>").
         max_jac : int, optional
             Jacobians of each new fit (default ``2 max_jac``, the calibration's budget).
 
