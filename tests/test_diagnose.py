@@ -755,7 +755,6 @@ def test_fallback_weighted_pass_on_null_recordings_keeps_none(null, tmp_path, mo
     assert "**Weighted pass tried.**" in (tmp_path / "f" / "report.md").read_text()
 
 
-
 def test_models_sharing_a_cache_run_each_point_once_whatever_the_roles(null):
     """A second pass (weighted, or with the split exchanged) repeats runs of the first: with a
     shared cache they are not run again, and give the same speeds with the roles reordered."""
