@@ -491,8 +491,7 @@ class Diagnosis:
 
         p0 = recs[fit_idx[0]].params
         start = {k: p0[k] for k in ("k_c", "b_c", "k_imp", "mu_s", "mu_k")}
-        with FeatureModel(recs, workers=self.workers, progress=self.progress,
-                          cache=getattr(self, "_runs", None)) as model:
+        with FeatureModel(recs, workers=self.workers, progress=self.progress, cache=self._runs) as model:
             self.model_ = model
             # 1. calibrate
             self.log(f"calibrating k_c, b_c, k_imp, mu_s, mu_k on {len(fit_idx)} recording(s)")
@@ -692,7 +691,7 @@ class Diagnosis:
                 # "converged after 1 Jacobian" at the calibrated 0.0614 rad/s, while their linear
                 # screening gave 0.033): the same check, on the best of its starts
                 best = self.refits_[cand.id]["result"]
-                if self.unstall > 0 and self.rule.mismatch(best.rmse_fit, self.floor_):
+                if self.rule.mismatch(best.rmse_fit, self.floor_):   # (_unstall does nothing at unstall=0)
                     nxt = self._unstall(model, h, best, fit_idx, what=f"refit of {cand.id}", max_jac=self.max_jac)
                     if nxt is not best:
                         assess(cand, h, nxt)

@@ -134,6 +134,7 @@ class FeatureModel:
     def __init__(self, recordings: Sequence[Prepared], workers: int | None = None, progress=None,
                  cache: dict | None = None):
         self.recordings = list(recordings)
+        self._index = {r.name: i for i, r in enumerate(self.recordings)}   # cache keys are names
         self.workers = max(1, min(8, os.cpu_count() or 1) if workers is None else int(workers))
         self.progress = progress
         self._cache: dict = {} if cache is None else cache
@@ -169,10 +170,9 @@ class FeatureModel:
         todo = [k for k in dict.fromkeys(keys) if k not in self._cache]
         if not todo:
             return
-        index = {r.name: i for i, r in enumerate(self.recordings)}
         tasks = []
         for name, ck in todo:
-            r = self.recordings[index[name]]
+            r = self.recordings[self._index[name]]
             tasks.append((r.params.to_dict(), r.drive, r.t0, r.t1, dict(ck)))
         pool = self._executor()
         if pool is None:
