@@ -157,6 +157,30 @@ def test_a_run_over_its_step_budget_fails_instead_of_stalling(monkeypatch):
     assert engine._simulate(task) is None
 
 
+
+def test_heun_is_skipped_only_where_the_arm_damper_makes_it_diverge():
+    """Just above the skip threshold Heun at the fit's step does diverge (so skipping it loses
+    no run), and the run is the dopri5 one; at the default damping Heun is tried first."""
+    from szdyn.defaults import default_parameters
+    from szdyn.drive import RampHold
+    from szdyn.diagnose import engine
+    from szdyn.errors import SimulationError
+    from szdyn.simulate import simulate
+
+    p0 = default_parameters()
+    # the damping whose free-arm mode z = -HEUN_DT b_c / (m_c d^2) is 2 % past Heun's -2
+    b_skip = engine._ARM_MODE_MARGIN * engine.HEUN_STABILITY_LIMIT * p0["m_c"] * p0["d"] ** 2 / engine.HEUN_DT
+    assert 0.0115 < b_skip < 0.012                          # N*m*s/rad, 1.57x the thesis's b_c
+    assert [kw["method"] for kw in engine.integrators(p0)] == ["heun", "dopri5"]
+    p = p0.replace(b_c=1.01 * b_skip)
+    assert [kw["method"] for kw in engine.integrators(p)] == ["dopri5"]
+    drive, T = RampHold(a=3.14, t_ramp=0.5, t_hold=0.5), 1.0
+    with pytest.raises(SimulationError):
+        simulate(p, drive, T, method="heun", dt=engine.HEUN_DT, save_dt=engine.SIM_DT)
+    t, qb = engine._simulate((p0.to_dict(), drive, 0.0, T, {"b_c": 1.01 * b_skip}))
+    ref = simulate(p, drive, T, x0=p.initial_state(None), save_dt=engine.SIM_DT, **engine._DOPRI5).outputs["q_b"]
+    assert np.array_equal(qb, ref - ref[0])
+
 # ----------------------------------------------------------------------------- rule
 def test_rule_says_none_at_the_noise_floor_and_picks_an_explaining_candidate():
     rule = SelectionRule()
