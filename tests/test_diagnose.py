@@ -161,7 +161,8 @@ def test_a_run_over_its_step_budget_fails_instead_of_stalling(monkeypatch):
 def test_heun_halves_its_step_only_where_the_arm_damper_makes_the_full_step_diverge():
     """Just past the threshold Heun at the fit's step does diverge, so the half step loses no
     run that worked; the half-step run agrees with dopri5; at the default damping the step is
-    the full one, and past the half step's limit too the run goes to dopri5."""
+    the full one, close below the threshold a failed full step is retried at the half step, and
+    past the half step's limit too the run goes to dopri5."""
     from szdyn.defaults import default_parameters
     from szdyn.drive import RampHold
     from szdyn.diagnose import engine
@@ -174,6 +175,8 @@ def test_heun_halves_its_step_only_where_the_arm_damper_makes_the_full_step_dive
     assert 0.0115 < b_lim < 0.012                           # N*m*s/rad, 1.57x the thesis's b_c
     steps = lambda p: [(kw["method"], kw.get("dt")) for kw in engine.integrators(p)]   # noqa: E731
     assert steps(p0) == [("heun", engine.HEUN_DT), ("dopri5", None)]
+    assert steps(p0.replace(b_c=0.9 * b_lim)) == [("heun", engine.HEUN_DT), ("heun", 0.5 * engine.HEUN_DT),
+                                                 ("dopri5", None)]
     p = p0.replace(b_c=1.01 * b_lim)
     assert steps(p) == [("heun", 0.5 * engine.HEUN_DT), ("dopri5", None)]
     assert steps(p0.replace(b_c=2.02 * b_lim)) == [("dopri5", None)]

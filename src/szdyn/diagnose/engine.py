@@ -53,6 +53,9 @@ HEUN_STABILITY_LIMIT = 2.0
 #: one of 306 runs with b_c >= 0.01066 N*m*s/rad and ran every one with b_c <= 0.01016, where
 #: 2 m_c d^2 / dt = 0.01152).
 _ARM_MODE_MARGIN = 1.02
+#: Fraction of that limit above which a failed full Heun step is retried at half the step
+#: (b_c above ~0.0094 N*m*s/rad at the defaults; see :func:`integrators`).
+_ARM_MODE_NEAR = 0.8
 
 
 def arm_damper_rate(p) -> float:
@@ -66,13 +69,18 @@ def integrators(p) -> tuple:
 
     Heun's step is ``HEUN_DT``, or half of it where the arm damper's mode lies beyond Heun's
     stability limit at ``HEUN_DT`` (b_c above ~0.0118 N*m*s/rad at the defaults), where the
-    full step must diverge. Beyond the limit at the half step too, dopri5 directly.
+    full step must diverge. Close below that limit (``_ARM_MODE_NEAR``) the contacts push the
+    mode across it (the full step failed from b_c ~0.0103-0.0107 on grid and cost recordings),
+    so a failed full step is retried at the half step before dopri5. Beyond the limit at the
+    half step too, dopri5 directly.
     """
     if p["mu_t"] > 0:
         return (_DOPRI5,)
     z = HEUN_DT * arm_damper_rate(p) / (_ARM_MODE_MARGIN * HEUN_STABILITY_LIMIT)
-    if z <= 1.0:
+    if z <= _ARM_MODE_NEAR:
         return (_HEUN, _DOPRI5)
+    if z <= 1.0:
+        return (_HEUN, _HEUN_HALF, _DOPRI5)
     if z <= 2.0:
         return (_HEUN_HALF, _DOPRI5)
     return (_DOPRI5,)
