@@ -157,7 +157,6 @@ def test_a_run_over_its_step_budget_fails_instead_of_stalling(monkeypatch):
     assert engine._simulate(task) is None
 
 
-
 def test_heun_halves_its_step_only_where_the_arm_damper_makes_the_full_step_diverge():
     """Just past the threshold Heun at the fit's step does diverge, so the half step loses no
     run that worked; the half-step run agrees with dopri5; at the default damping the step is

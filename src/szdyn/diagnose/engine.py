@@ -11,7 +11,8 @@ that diverges is repeated with adaptive dopri5 (rtol 1e-5). Where the arm dampin
 damper mode (rate b_c / (m_c d^2)) past Heun's stability limit at 0.1 ms, Heun runs at half the
 step instead: the full step would diverge, and dopri5 there is stiffness-bound and 1.4-2.1x
 slower than the half step (measured on the issue's cost case, b_c 0.012-0.0188 N*m*s/rad; the
-two agree to 1e-6 rad/s in the smoothed band speed). Runs with roller-contact friction
+two agree to 1e-6 rad/s in the smoothed band speed); close below that limit a full step that
+diverges is retried at the half step before dopri5 (:func:`integrators`). Runs with roller-contact friction
 (``mu_t > 0``, wheel_band_traction) go to dopri5 directly: its ``tanh(v / v_teps)`` is stiff at
 the contacts, and Heun at 0.1 ms does not diverge there but quietly loses most of the effect
 (measured, mu_t 0.28, v_teps 1 mm/s: band angle after 2 s 3.059 rad, 3.057 rad without
@@ -47,7 +48,7 @@ DOPRI5_MAX_STEPS_PER_S = 5e5
 
 #: Heun's stability interval on the negative real axis: |1 + z + z^2/2| <= 1 for -2 <= z <= 0.
 HEUN_STABILITY_LIMIT = 2.0
-#: Margin on the arm damper's eigenvalue before a Heun attempt is skipped: its magnitude is
+#: Margin on the arm damper's eigenvalue before Heun's full step is skipped: its magnitude is
 #: b_c / (m_c d^2) less about k_c / b_c (2e-4 of it at the defaults), and the coupling to the
 #: band only makes it larger (measured on the issue's cost case: Heun at 0.1 ms failed for every
 #: one of 306 runs with b_c >= 0.01066 N*m*s/rad and ran every one with b_c <= 0.01016, where
@@ -59,8 +60,8 @@ _ARM_MODE_NEAR = 0.8
 
 
 def arm_damper_rate(p) -> float:
-    """Decay rate (1/s) of a free arm's damper mode, ``b_c / (m_c d^2)``: the model's fastest
-    eigenvalue when the arm damping is high (``p``: a ParameterSet or mapping, SI)."""
+    """Decay rate (1/s) of a free arm's damper mode, ``b_c / (m_c d^2)``, the mode that limits
+    Heun's step when the arm damping is high (``p``: a ParameterSet or mapping, SI)."""
     return p["b_c"] / (p["m_c"] * p["d"] ** 2)
 
 
