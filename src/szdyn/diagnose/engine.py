@@ -12,12 +12,12 @@ damper mode (rate b_c / (m_c d^2)) past Heun's stability limit at 0.1 ms, Heun r
 step instead: the full step would diverge, and dopri5 there is stiffness-bound and 1.4-2.1x
 slower than the half step (measured on the issue's cost case, b_c 0.012-0.0188 N*m*s/rad; the
 two agree to 1e-6 rad/s in the smoothed band speed); close below that limit a full step that
-diverges is retried at the half step before dopri5 (:func:`integrators`). Runs with roller-contact friction
-(``mu_t > 0``, wheel_band_traction) go to dopri5 directly: its ``tanh(v / v_teps)`` is stiff at
-the contacts, and Heun at 0.1 ms does not diverge there but quietly loses most of the effect
-(measured, mu_t 0.28, v_teps 1 mm/s: band angle after 2 s 3.059 rad, 3.057 rad without
-traction, 2.850 rad converged). The synthetic recordings are integrated with RK4 (at 10 us
-when mu_t > 0), so the fit never uses the truth's integrator.
+diverges is retried at the half step before dopri5 (:func:`integrators`). Runs with
+roller-contact friction (``mu_t > 0``, wheel_band_traction) go to dopri5 directly: its
+``tanh(v / v_teps)`` is stiff at the contacts, and Heun at 0.1 ms does not diverge there but
+quietly loses most of the effect (measured, mu_t 0.28, v_teps 1 mm/s: band angle after 2 s
+3.059 rad, 3.057 rad without traction, 2.850 rad converged). The synthetic recordings are
+integrated with RK4 (at 10 us when mu_t > 0), so the fit never uses the truth's integrator.
 """
 from __future__ import annotations
 
