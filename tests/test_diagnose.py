@@ -430,17 +430,42 @@ def test_amplitude_starts_switch_the_effect_on_at_fractions_of_its_bounds():
     starts = Diagnosis._starts(h, xb, h.x_start())
     assert sorted(x[-1] for x in starts) == pytest.approx([-0.35, -0.175, 0.175, 0.35])
     assert all(np.array_equal(x[:h.n_base], xb) for x in starts)
-    # Stribeck: the amplitude only (v_st is a shape parameter, kept at the screened value);
-    # no probe at a zero bound (that is "off")
-    h = Hypothesis(START, CANDIDATES["slider_stribeck"])
-    x_lin = np.r_[xb, 0.01, 0.3]
-    starts = Diagnosis._starts(h, xb, x_lin)
-    assert [tuple(x[-2:]) for x in starts] == [(0.375, 0.3), (0.75, 0.3)]
+    # no probe at a zero bound (that is "off"); v_st-like shape parameters are not probed
+    h = Hypothesis(START, CANDIDATES["slider_viscous"])
+    assert [x[-1] for x in Diagnosis._starts(h, xb, h.x_start())] == pytest.approx([0.025, 0.05])
+    speed = np.linspace(-2.0, 6.0, 81)
     for cid in CANDIDATES:
         h = Hypothesis(START, CANDIDATES[cid])
         lo, hi = h.bounds()
-        for x in Diagnosis._starts(h, xb, h.x_start()):
+        for x in Diagnosis._starts(h, xb, h.x_start(), speed):
             assert np.all(x >= lo) and np.all(x <= hi), cid
+
+
+def test_stribeck_probes_move_the_peak_out_of_the_calibrated_friction():
+    xb = np.full(len(CALIBRATED), 0.03)
+    h = Hypothesis(START, CANDIDATES["slider_stribeck"])
+    x_lin = np.r_[xb, 0.01, 0.3]
+    with pytest.raises(ValueError, match="band speed"):
+        Diagnosis._starts(h, xb, x_lin)
+    speed = np.r_[np.full(50, 0.2), np.full(50, 3.0)]          # rad/s, half slow, half fast
+    cal = h.values(np.r_[xb, 0.0, 0.5])
+    starts = Diagnosis._starts(h, xb, x_lin, speed)
+    assert len(starts) == 8
+    for x in starts:
+        v = h.values(x)
+        assert v["mu_st"] / cal["mu_k"] == pytest.approx(0.25) or v["mu_st"] / cal["mu_k"] == pytest.approx(0.5)
+        w = np.mean(np.exp(-(speed / v["v_st"]) ** 2))
+        # the mean sliding friction over the recorded speeds is the calibrated one ...
+        assert v["mu_k"] + v["mu_st"] * w == pytest.approx(cal["mu_k"], rel=1e-9)
+        # ... and the friction at rest too, unless that would put mu_s under mu_k (then the
+        # static excess is the smallest the fit allows)
+        if cal["mu_s"] - v["mu_st"] > v["mu_k"] + 0.2 * (START["mu_s"] - START["mu_k"]):
+            assert v["mu_s"] + v["mu_st"] == pytest.approx(cal["mu_s"], rel=1e-9)
+        else:
+            assert v["mu_s"] - v["mu_k"] == pytest.approx(0.2 * (START["mu_s"] - START["mu_k"]), rel=1e-6)
+        # the coefficients the friction does not touch stay as calibrated
+        assert all(v[k] == pytest.approx(cal[k]) for k in ("k_c", "b_c", "k_imp"))
+    assert sorted({round(h.values(x)["v_st"], 6) for x in starts}) == [0.1, 0.3, 1.0, 2.5]
 
 
 class _StickingBackward:
@@ -483,6 +508,42 @@ def test_probe_with_base_correction_finds_an_effect_the_linearisation_cannot():
     assert x[-1] == pytest.approx(-0.175) and h.values(x)["mu_k"] > 0.2
     assert rss < 0.6 * float(r0 @ r0)
     assert all(r > float(r0 @ r0) for k, _, r in probes if k == "calibrated + effect amplitude probe")
+
+
+class _StribeckCurve:
+    """Stand-in for FeatureModel: the residual is the truth's sliding friction minus the model's at
+    the recorded band speeds (truth: mu_k 0.22 plus a Stribeck peak 0.1 at v_st 0.5 rad/s),
+    and a start that sticks when the friction at rest (mu_s + mu_st) exceeds 0.42."""
+
+    speed = np.r_[np.linspace(0.05, 1.0, 40), np.linspace(1.0, 6.0, 60)]
+
+    @staticmethod
+    def mu(mc, u):
+        return mc["mu_k"] + mc.get("mu_st", 0.0) * np.exp(-(u / mc.get("v_st", 1.0)) ** 2)
+
+    def residuals(self, points, which):
+        truth = self.mu({"mu_k": 0.22, "mu_st": 0.1, "v_st": 0.5}, self.speed)
+        return [np.r_[truth - self.mu(mc, self.speed),
+                      10.0 * max(mc["mu_s"] + mc.get("mu_st", 0.0) - 0.42, 0.0)] for mc, _ in points]
+
+
+def test_stribeck_probes_leave_the_calibrated_valley_where_a_peak_on_top_sticks():
+    model, d = _StribeckCurve(), Diagnosis(candidates=["slider_stribeck"])
+    d._moving_speed = model.speed
+    base = Hypothesis(START)
+    # the calibrated base: mu_k carries the mean friction, mu_s the static peak at 0.40
+    truth = model.mu({"mu_k": 0.22, "mu_st": 0.1, "v_st": 0.5}, model.speed)
+    cal = base.coordinates({**START, "mu_k": float(np.mean(truth)), "mu_s": 0.40})
+    (r0,) = model.residuals([base.point(cal)], [0])
+    h = Hypothesis(START, CANDIDATES["slider_stribeck"])
+    probes = d._probe(model, h, cal, np.r_[cal, 0.0, 0.5], [0])
+    assert len(probes) == 8 and all(k == "effect probe moved out of the calibrated base" for k, _, _ in probes)
+    name, x, rss = min(probes, key=lambda t: t[2])
+    assert rss < 0.5 * float(r0 @ r0)
+    # the same peak added on top of the calibrated friction sticks the band and fits worse
+    on_top = np.r_[cal, x[-2:]]
+    (r_top,) = model.residuals([h.point(on_top)], [0])
+    assert float(r_top @ r_top) > float(r0 @ r0)
 
 
 def test_probe_start_switches_on_an_effect_the_refits_left_off():

@@ -24,6 +24,8 @@ import math
 from dataclasses import dataclass
 from collections.abc import Callable
 
+import numpy as np
+
 __all__ = ["FitParam", "Candidate", "CANDIDATES", "CALIBRATED", "FIXED_UNIDENTIFIED",
            "candidate_ids", "primary_std"]
 
@@ -96,6 +98,15 @@ class Candidate:
         0.4 to 2.8 noise floors on four grid cases, docs/DIAGNOSIS-DESIGN.md, "The force scale").
         Such a parameter is better determined relative to the kinetic friction
         (``primary / mu_k``) and is reported so as well.
+    probes : callable(dict, ndarray) -> list of (dict, dict), optional
+        For an effect that the calibrated base coefficients absorb wholesale: ``probes(base,
+        speed)`` with ``base`` the calibrated coefficients (``k_c, b_c, k_imp, mu_s, mu_k``) and
+        ``speed`` the measured band speed (rad/s) of the fit recordings' moving samples, returns
+        starts ``(effect values, base values)``: the effect switched on at physical amplitudes
+        together with the base change that takes the same amount back out of what the
+        calibration fitted. Replaces the bound-fraction probes of
+        :meth:`~szdyn.diagnose.diagnosis.Diagnosis._starts`; the best is continued by one
+        Jacobian in the probe screening.
     """
 
     id: str
@@ -108,6 +119,7 @@ class Candidate:
     explains: str
     signature: tuple = ()
     force_scaled: bool = False
+    probes: Callable | None = None
 
 
 def _lin(name):
@@ -149,6 +161,33 @@ def _stribeck(v):
     return {"mu_st": v["mu_st"], "v_st": v["v_st"]}, {}
 
 
+#: Stribeck peaks tried by the probes, as fractions of the calibrated kinetic friction: about the
+#: defaults' own static excess (mu_s / mu_k = 1.2) and twice it. (szdyn.synth draws 0.2-0.6.)
+STRIBECK_PROBE_FRACTIONS = (0.25, 0.5)
+#: Stribeck speeds tried by the probes (rad/s): log-spaced over the fit bounds, as screened.
+STRIBECK_PROBE_SPEEDS = (0.1, 0.3, 1.0, 2.5)
+
+
+def _stribeck_probes(base, speed):
+    """Stribeck peaks moved out of the calibrated slider friction (see ``Candidate.probes``).
+
+    A base model calibrated on recordings with a low-speed friction peak raises ``mu_s`` and
+    ``mu_k`` to carry it, and the peak added on top then sticks the band (slider_stribeck seed
+    17: 44-92 noise floors on the 1 kg recordings from the calibrated point). Each probe keeps the
+    friction at rest (``mu_s - mu_st``; at least ``mu_k``) and the mean sliding friction over the
+    recorded band speeds (``mu_k - mu_st <exp(-(u/v_st)^2)>``) as calibrated.
+    """
+    out = []
+    for v_st in STRIBECK_PROBE_SPEEDS:
+        w = float(np.mean(np.exp(-(np.asarray(speed) / v_st) ** 2))) if len(speed) else 0.0
+        for f in STRIBECK_PROBE_FRACTIONS:
+            a = f * base["mu_k"]
+            mu_k = base["mu_k"] - a * w
+            out.append(({"mu_st": a, "v_st": v_st},
+                        {**base, "mu_k": mu_k, "mu_s": max(base["mu_s"] - a, mu_k)}))
+    return out
+
+
 #: Base-model coefficients calibrated in every hypothesis (log space, +-60 % bounds). ``b_imp``
 #: is not among them: in the smoothed features it is ~40x below the noise floor and collinear
 #: with ``b_c`` and ``k_imp`` (docs/DIAGNOSIS-DESIGN.md), so it stays at its default and the
@@ -182,7 +221,7 @@ CANDIDATES: dict[str, Candidate] = {c.id: c for c in (
         _stribeck, "mu_st", lambda v: v["mu_st"],
         "tau_b += -R_bo m_b g mu_st exp(-(u_b/v_st)^2) sign(u_b)",
         "extra friction at low band speed: start-up lag and slow-speed slip, fading at speed",
-        signature=("low_speed",), force_scaled=True),
+        signature=("low_speed",), force_scaled=True, probes=_stribeck_probes),
     Candidate(
         "friction_asymmetry", "model",
         (FitParam("fric_asym", "1", -0.7, 0.7, 0.1),),

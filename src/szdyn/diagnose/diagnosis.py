@@ -223,6 +223,8 @@ class Diagnosis:
         self.workers = workers
         self.log = log or (lambda msg: None)
         self.progress = progress
+        self._moving_speed = None   # set by each pass: measured band speed where the band moves
+        self._refined = {}          # candidate id -> (name, x, rss): probe continued by one Jacobian
 
     def _library(self) -> list:
         if self.candidates is None:
@@ -277,7 +279,7 @@ class Diagnosis:
         return sorted(out, key=lambda s: s["rmse_linear"])
 
     @staticmethod
-    def _starts(h: Hypothesis, x_base, x_lin) -> list:
+    def _starts(h: Hypothesis, x_base, x_lin, speed=None) -> list:
         """Refit starts with the effect switched on at finite amplitudes.
 
         Each amplitude parameter (not a shape parameter) is set, one at a time, to each of
@@ -285,6 +287,14 @@ class Diagnosis:
         and the other effect parameters at the linear step ``x_lin``. Where the calibrated model
         sticks (or slips fully) on a recording, an effect's slope from "off" is zero there and a
         gradient method started at "off" never switches it on; from these points it can.
+        A candidate with its own ``probes`` (an effect the base coefficients absorb wholesale)
+        gives its starts instead, base coefficients included.
+
+        Parameters
+        ----------
+        speed : ndarray, optional
+            Measured band speed (rad/s) of the fit recordings' moving samples; required by a
+            candidate with ``probes``.
 
         Returns
         -------
@@ -293,6 +303,12 @@ class Diagnosis:
         """
         lo, hi = h.bounds()
         out = []
+        if h.candidate is not None and h.candidate.probes is not None:
+            if speed is None:
+                raise ValueError(f"{h.candidate.id}'s probes need the measured band speed")
+            base = h.values(np.concatenate([x_base, x_lin[h.n_base:]]))
+            base = {k: base[k] for k in ("k_c", "b_c", "k_imp", "mu_s", "mu_k")}
+            return [h.inside(h.coordinates({**b, **e})) for e, b in h.candidate.probes(base, speed)]
         for j in range(h.n_base, len(lo)):
             if h.params[j].screen_at:
                 continue
@@ -311,25 +327,32 @@ class Diagnosis:
         The calibration compensated for the missing effect on the recordings where the effect is
         small; switching it on must undo that compensation (e.g. mu_k for an asymmetry), which
         the base Jacobian of the screening (``_J_base``) does to first order: bounded least
-        squares of that point's residual on the base columns.
+        squares of that point's residual on the base columns. (Not for a candidate with its own
+        ``probes``, which carry their base change.)
 
         Returns
         -------
         list of (str, ndarray, float)
             Name of the start, the point (fit coordinates), fit RSS ((rad/s)^2).
         """
-        probes = self._starts(h, x_base, x_lin)
+        probes = self._starts(h, x_base, x_lin, self._moving_speed)
         if not probes:
             return []
         lo, hi = h.bounds()
         nb = h.n_base
         out, corrected = [], []
+        own = h.candidate.probes is not None
         for x, r in zip(probes, model.residuals([h.point(x) for x in probes], fit_idx)):
-            out.append(("calibrated + effect amplitude probe", x, float(r @ r)))
+            out.append(("effect probe moved out of the calibrated base" if own
+                        else "calibrated + effect amplitude probe", x, float(r @ r)))
+            if own:
+                continue
             dx, _ = screen(r, self._J_base, np.zeros((r.size, 0)), lo[:nb] - x[:nb], hi[:nb] - x[:nb])
             xc = x.copy()
             xc[:nb] = np.clip(x[:nb] + dx, lo[:nb], hi[:nb])
             corrected.append(xc)
+        if not corrected:
+            return out
         for x, r in zip(corrected, model.residuals([h.point(x) for x in corrected], fit_idx)):
             out.append(("effect amplitude probe + linear base correction", x, float(r @ r)))
         return out
@@ -351,7 +374,7 @@ class Diagnosis:
         ndarray or None
             Start in ``h``'s fit coordinates.
         """
-        probes = self._starts(h, np.asarray(x_nom)[:h.n_base], x_nom)
+        probes = self._starts(h, np.asarray(x_nom)[:h.n_base], x_nom, self._moving_speed)
         if not probes:
             return None
         R = model.residuals([h.point(x) for x in [x_nom] + probes], fit_idx)
@@ -491,6 +514,11 @@ class Diagnosis:
 
         p0 = recs[fit_idx[0]].params
         start = {k: p0[k] for k in ("k_c", "b_c", "k_imp", "mu_s", "mu_k")}
+        # the band speeds a candidate's own probes average over: where the band slides (beyond
+        # the slider law's static band, 1.5 gamma), on the fit recordings only
+        self._moving_speed = np.concatenate([recs[i].y[np.abs(recs[i].y) > 1.5 * recs[i].params["gamma"]]
+                                             for i in fit_idx])
+        self._refined = {}
         with FeatureModel(recs, workers=self.workers, progress=self.progress, cache=self._runs) as model:
             self.model_ = model
             # 1. calibrate
@@ -586,7 +614,9 @@ class Diagnosis:
                          f"also refitting {', '.join(self.nominated_['added'])}")
             # probe screening: each candidate switched on at finite amplitudes (with and without
             # the linear base correction), actual model runs; the best, if it beats the calibrated
-            # base by more than the information criterion's margin, is refitted too
+            # base by more than the information criterion's margin, is refitted too. A candidate
+            # with its own probes (moved out of the calibrated base) is judged on its own: it
+            # does not take the slot of the others' best
             self.probing_ = []
             if self.mismatch_ and self.probe_screen:
                 for c in self._library():
@@ -595,11 +625,21 @@ class Diagnosis:
                     pr = self._probe(model, h, cal.x, x_lin, fit_idx)
                     if pr:
                         best = min(pr, key=lambda t: t[2])
+                        if c.probes is not None:
+                            # an effect the calibration absorbed: its best probe only leaves the
+                            # calibrated valley; one Jacobian from there shows whether it leads
+                            # anywhere (slider_stribeck seed 17: probe 2.46, calibrated 2.36,
+                            # refit from the probe 1.72 noise floors)
+                            res = fit_hypothesis(model, h, fit_idx, x0=best[1], max_jac=1, tol=FIT_TOL)
+                            if res.rss_fit < best[2]:
+                                best = (best[0] + ", one Jacobian on", res.x, res.rss_fit)
+                            self._refined[c.id] = best
                         self.probing_.append({"id": c.id, "rmse_probe": math.sqrt(best[2] / cal.n_fit),
-                                              "rmse_base": cal.rmse_fit, "start": best[0]})
+                                              "rmse_base": cal.rmse_fit, "start": best[0],
+                                              "own_probes": c.probes is not None})
                 self.probing_.sort(key=lambda q: q["rmse_probe"])
-                if self.probing_:
-                    top = self.probing_[0]
+                generic = [q for q in self.probing_ if not q["own_probes"]]
+                for top in generic[:1] + [q for q in self.probing_ if q["own_probes"]]:
                     tie = self.rule.indistinguishable(rss_selected=top["rmse_probe"] ** 2 * cal.n_fit,
                                                       rss_other=cal.rss_fit, n_fit=cal.n_fit)
                     if not tie and top["id"] not in short:
@@ -652,7 +692,8 @@ class Diagnosis:
                 names = ["linear step", "calibrated + screened effect", "calibrated base"]
                 starts = [x_lin, x_cal, x_off]
                 rss = [float(r @ r) for r in model.residuals([h.point(x) for x in starts], fit_idx)]
-                for name, x, r in self._probe(model, h, cal.x, x_lin, fit_idx):   # cached runs
+                for name, x, r in self._probe(model, h, cal.x, x_lin, fit_idx) + \
+                        ([self._refined[cid]] if cid in self._refined else []):   # cached runs
                     names.append(name)
                     starts.append(x)
                     rss.append(r)

@@ -88,6 +88,15 @@ class Hypothesis:
             v[p.name] = float(xi)
         return v
 
+    def coordinates(self, values: dict) -> np.ndarray:
+        """Fit coordinates of named values (the inverse of :meth:`values`; not clipped)."""
+        v = dict(values)
+        v["dmu_s"] = v["mu_s"] - v["mu_k"]
+        x = [math.log(v[p.name] / self._start_log[p.name]) if v[p.name] > 0 else -math.inf
+             for p in self.params[:self.n_base]]
+        x += [float(v[p.name]) for p in self.params[self.n_base:]]
+        return np.array(x, dtype=float)
+
     def point(self, x) -> tuple[dict, dict]:
         """``(model_changes, sensor_changes)`` at ``x``."""
         v = self.values(x)

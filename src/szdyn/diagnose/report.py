@@ -119,11 +119,16 @@ def _probing_md(d) -> str:
         return "No probe screening (nothing significant is missing, or it was switched off)."
     top = d.probing_[0]
     fr = " and ".join(f"{f:g}" for f in AMPLITUDE_PROBES)
+    own = [q["id"] for q in d.probing_ if q.get("own_probes")]
+    refitted = [q["id"] for q in d.probing_ if q["id"] in d.refits_]
     return (f"Probe screening (each candidate switched on at {fr} of its bounds, base coefficients "
-            "as calibrated or corrected linearly; model runs): best " + ", ".join(
-                f"`{q['id']}` {_f(q['rmse_probe'])}" for q in d.probing_[:3])
+            "as calibrated or corrected linearly; model runs"
+            + (f"; {', '.join(f'`{k}`' for k in own)} at its own probes, moved out of the calibrated "
+               "base coefficients and continued by one Jacobian, judged apart from the others"
+               if own else "")
+            + "): best " + ", ".join(f"`{q['id']}` {_f(q['rmse_probe'])}" for q in d.probing_[:3])
             + f" rad/s against the calibrated base's {_f(top['rmse_base'])}"
-            + (f"; `{top['id']}` was refitted." if top["id"] in d.refits_ else "."))
+            + (f"; refitted: {', '.join(f'`{k}`' for k in refitted)}." if refitted else "."))
 
 
 def _detectable_md(d, js) -> list:
