@@ -7,9 +7,10 @@ Steps (each a module of its own):
 3. locate the mismatch in time, regime and frequency (:mod:`.locate`);
 4. screen every candidate of the library linearly, add the candidates whose signature the
    residual follows (:func:`~.selection.nominate`) and the best one switched on at finite
-   amplitudes (probe screening, :meth:`Diagnosis._probe`), refit that shortlist nonlinearly, refit the
-   base model alone from the best candidate's coefficients (ablation: did the effect help, or
-   only the new start?), and select with :class:`~.selection.SelectionRule` (held-out data +
+   amplitudes (probe screening, :meth:`Diagnosis._probe`; a candidate with its own probes,
+   slider_stribeck, is judged apart), refit that shortlist nonlinearly, refit the base model
+   alone from the best candidate's coefficients (ablation: did the effect help, or only the new
+   start?), and select with :class:`~.selection.SelectionRule` (held-out data +
    information criterion; an effect is named only if its refit comes within a few noise floors,
    :func:`~.selection.decide`), after refitting the next screened candidates too when the
    provisional winner leaves the fit above two floors (:func:`~.selection.rivals`);
