@@ -164,8 +164,10 @@ class Diagnosis:
         ``ids``: candidates refitted because their signature holds that feature;
         ``added``: those of them the linear screening had not shortlisted.
     probing_ : list of dict
-        Per candidate with amplitude probes: ``rmse_probe`` (fit RMSE of its best probe, rad/s)
-        and which kind of probe it was, sorted by that RMSE (empty when nothing is missing).
+        Per candidate with amplitude probes: ``rmse_probe`` (fit RMSE of its best probe, rad/s),
+        which kind of probe it was (``start``), ``own_probes`` (the candidate's own, judged apart)
+        and ``added`` (present, True, when the probe screening put it on the shortlist), sorted
+        by that RMSE (empty when nothing is missing).
     refits_ : dict of str -> dict
         Per refitted candidate: ``result`` (FitResult), ``heldout_rmse``, scores.
     rivals_ : list of str
@@ -302,14 +304,14 @@ class Diagnosis:
         list of ndarray
             Points in ``h``'s fit coordinates.
         """
-        lo, hi = h.bounds()
-        out = []
         if h.candidate is not None and h.candidate.probes is not None:
             if speed is None:
                 raise ValueError(f"{h.candidate.id}'s probes need the measured band speed")
             base = h.values(np.concatenate([x_base, x_lin[h.n_base:]]))
             base = {k: base[k] for k in ("k_c", "b_c", "k_imp", "mu_s", "mu_k")}
             return [h.inside(h.coordinates({**b, **e})) for e, b in h.candidate.probes(base, speed)]
+        lo, hi = h.bounds()
+        out = []
         for j in range(h.n_base, len(lo)):
             if h.params[j].screen_at:
                 continue
@@ -645,6 +647,7 @@ class Diagnosis:
                                                       rss_other=cal.rss_fit, n_fit=cal.n_fit)
                     if not tie and top["id"] not in short:
                         short.append(top["id"])
+                        top["added"] = True
                         self.log(f"probe screening: {top['id']} switched on fits at {top['rmse_probe']:.4g} "
                                  f"rad/s (calibrated base {cal.rmse_fit:.4g}): also refitting it")
             lap("screen")
