@@ -17,7 +17,7 @@ import pytest
 
 from szdyn.diagnose.candidates import CALIBRATED, CANDIDATES, primary_std
 from szdyn.diagnose.command import choose_heldout
-from szdyn.diagnose.diagnosis import Diagnosis
+from szdyn.diagnose.diagnosis import Diagnosis, probe_additions
 from szdyn.diagnose.engine import apply_sensor_transform, model_speed
 from szdyn.diagnose.fit import Hypothesis, fit_hypothesis, jacobian, linear_step
 from szdyn.diagnose.locate import FEATURES
@@ -544,6 +544,32 @@ def test_stribeck_probes_leave_the_calibrated_valley_where_a_peak_on_top_sticks(
     on_top = np.r_[cal, x[-2:]]
     (r_top,) = model.residuals([h.point(on_top)], [0])
     assert float(r_top @ r_top) > float(r0 @ r0)
+
+
+def test_probe_screening_gives_own_probes_a_slot_apart_from_the_best_generic_probe():
+    rule = SelectionRule()
+    n_fit, rss_base = 2000, 2000.0          # calibrated base: 1 rad/s RMS over 2000 samples
+
+    def entries(*rows):
+        return [{"id": i, "rmse_probe": r, "own_probes": own} for i, r, own in rows]
+
+    # one slot for the best generic probe (B, though it also beats the base, stays out); the
+    # own-probe candidate is judged apart, even when it ranks below both; one that does not
+    # beat the base by the criterion's margin (T, 0.9995 rad/s: n_eff ln ratio = 1 < 10) is not added
+    probing = entries(("A", 0.5, False), ("B", 0.6, False), ("S", 0.7, True), ("T", 0.9995, True))
+    added = probe_additions(probing, ["C"], rule, rss_base=rss_base, n_fit=n_fit)
+    assert [q["id"] for q in added] == ["A", "S"]
+    assert [q.get("added", False) for q in probing] == [True, False, True, False]
+    # the own-probe candidate leading the ranking does not take the generic slot either
+    probing = entries(("S", 0.3, True), ("A", 0.5, False))
+    assert {q["id"] for q in probe_additions(probing, [], rule, rss_base=rss_base, n_fit=n_fit)} == {"S", "A"}
+    # already shortlisted: not added twice, and the generic slot does not pass to the runner-up
+    probing = entries(("A", 0.5, False), ("B", 0.6, False), ("S", 0.7, True))
+    assert probe_additions(probing, ["A", "S"], rule, rss_base=rss_base, n_fit=n_fit) == []
+    assert not any(q.get("added") for q in probing)
+    # a probe fitting worse than the calibrated base is never added
+    probing = entries(("A", 1.2, False), ("S", 1.5, True))
+    assert probe_additions(probing, [], rule, rss_base=rss_base, n_fit=n_fit) == []
 
 
 def test_probe_start_switches_on_an_effect_the_refits_left_off():

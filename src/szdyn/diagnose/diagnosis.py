@@ -49,7 +49,7 @@ from .noise import bump_noise, sensor_noise
 from .selection import SelectionRule, decide, nominate, rivals, screen
 from .split import exchange_pairs, exchanged
 
-__all__ = ["FIT_TOL", "FLOOR_SPREAD", "WEIGHTINGS", "Diagnosis"]
+__all__ = ["FIT_TOL", "FLOOR_SPREAD", "WEIGHTINGS", "Diagnosis", "probe_additions"]
 
 #: Fractions of an effect amplitude's bound at which the probe screening and every refit try the
 #: effect switched on (see :meth:`Diagnosis._starts`).
@@ -73,6 +73,44 @@ WEIGHTINGS = ("fallback", "always", "off")
 #: ones flip (nulls 21, 22, 24, 27, 28 and the other cases of seed 16); out of sample, 1.2 and
 #: 1.9 (wheel_band_traction 17, load_lift 17) and 3.5-14.7 on the rest of seed 17 and null 29.
 FLOOR_SPREAD = 3.0
+
+
+def probe_additions(probing, shortlist, rule: SelectionRule, *, rss_base: float, n_fit: int) -> list:
+    """Entries of the probe screening that go on the refit shortlist.
+
+    The best probe among the candidates without probes of their own takes one slot; every
+    candidate with its own probes (``own_probes``: moved out of the calibrated base) is judged
+    on its own, so it never takes that slot from the others. An entry goes on the shortlist when
+    its probe beats the calibrated base by more than the information criterion's margin
+    (``rule.indistinguishable`` false) and it is not on the shortlist already.
+
+    Parameters
+    ----------
+    probing : list of dict
+        :attr:`Diagnosis.probing_` entries sorted by ``rmse_probe`` (rad/s), each with ``id``
+        and ``own_probes``.
+    shortlist : list of str
+        Candidate ids already to be refitted (not modified).
+    rule : SelectionRule
+    rss_base : float
+        Residual sum of squares of the calibrated base on the fit recordings ((rad/s)^2).
+    n_fit : int
+        Number of fit samples ``rss_base`` sums over.
+
+    Returns
+    -------
+    list of dict
+        The entries added, in order; each is marked ``added = True``.
+    """
+    generic = [q for q in probing if not q["own_probes"]]
+    out = []
+    for top in generic[:1] + [q for q in probing if q["own_probes"]]:
+        tie = rule.indistinguishable(rss_selected=top["rmse_probe"] ** 2 * n_fit, rss_other=rss_base,
+                                     n_fit=n_fit)
+        if not tie and top["id"] not in shortlist:
+            top["added"] = True
+            out.append(top)
+    return out
 
 
 class Diagnosis:
@@ -641,15 +679,11 @@ class Diagnosis:
                                               "rmse_base": cal.rmse_fit, "start": best[0],
                                               "own_probes": c.probes is not None})
                 self.probing_.sort(key=lambda q: q["rmse_probe"])
-                generic = [q for q in self.probing_ if not q["own_probes"]]
-                for top in generic[:1] + [q for q in self.probing_ if q["own_probes"]]:
-                    tie = self.rule.indistinguishable(rss_selected=top["rmse_probe"] ** 2 * cal.n_fit,
-                                                      rss_other=cal.rss_fit, n_fit=cal.n_fit)
-                    if not tie and top["id"] not in short:
-                        short.append(top["id"])
-                        top["added"] = True
-                        self.log(f"probe screening: {top['id']} switched on fits at {top['rmse_probe']:.4g} "
-                                 f"rad/s (calibrated base {cal.rmse_fit:.4g}): also refitting it")
+                for top in probe_additions(self.probing_, short, self.rule, rss_base=cal.rss_fit,
+                                           n_fit=cal.n_fit):
+                    short.append(top["id"])
+                    self.log(f"probe screening: {top['id']} switched on fits at {top['rmse_probe']:.4g} "
+                             f"rad/s (calibrated base {cal.rmse_fit:.4g}): also refitting it")
             lap("screen")
 
             # 5. nonlinear refit of the shortlist
