@@ -641,17 +641,29 @@ class _ScriptedDiagnosis(Diagnosis):
         self.timings_, self.n_runs_, self.n_failed_, self.recordings_ = {"calibrate": 1.0}, 10, 0, recs
 
 
-def test_fit_exchanges_the_split_only_when_the_fit_recordings_hide_a_heldout_mismatch():
+def test_fit_exchanges_the_split_only_when_a_heldout_recording_shows_what_the_fit_ones_hide():
     # "none" with a held-out run far beyond the floor: a second pass with it fitted answers
     d = _ScriptedDiagnosis([("none", {"b_down": 18.0, "a_fast": 2.0}), ("selected", {})]).fit(_runs())
     assert d.seen == [{"a_fast", "b_down"}, {"a_fast", "a_down"}]
     assert d.verdict_ == "selected" and d.first_split_["exchanged"] == {"b_down": "a_down"}
     assert d.first_split_["verdict"] == "none" and d.n_runs_ == 20 and d.timings_["first_split"] == 1.0
-    # within max_remaining floors, after another verdict, or switched off: one pass
+    # a named effect whose model misses a held-out run: the second pass, naming one, is the answer
+    d = _ScriptedDiagnosis([("selected", {"b_down": 26.6}), ("selected", {})]).fit(_runs())
+    assert d.seen == [{"a_fast", "b_down"}, {"a_fast", "a_down"}] and d.unused_split_ is None
+    assert d.first_split_["verdict"] == "selected" and d.first_split_["selected"] == ["slider_viscous"]
+    # ... naming none, it is only a record: the first answer stands, with its own state
+    d = _ScriptedDiagnosis([("selected", {"b_down": 26.6}), ("unexplained", {})]).fit(_runs())
+    assert len(d.seen) == 2 and d.first_split_ is None
+    assert d.verdict_ == "selected" and d.heldout_beyond_floor_ == {"b_down": 26.6}
+    assert {r.name for r in d.recordings_ if r.role != "fit"} == {"a_fast", "b_down"}
+    assert d.unused_split_["verdict"] == "unexplained" and d.unused_split_["exchanged"] == {"b_down": "a_down"}
+    assert d.n_runs_ == 20 and d.timings_["unused_split"] == 1.0
+    # within max_remaining floors, after "unexplained", or switched off: one pass
     for script, kw in [([("none", {"b_down": 4.9})], {}), ([("unexplained", {"b_down": 18.0})], {}),
+                       ([("selected", {"b_down": 4.9})], {}),
                        ([("none", {"b_down": 18.0})], {"exchange_split": False})]:
         d = _ScriptedDiagnosis(script, **kw).fit(_runs())
-        assert len(d.seen) == 1 and d.first_split_ is None
+        assert len(d.seen) == 1 and d.first_split_ is None and d.unused_split_ is None
 
 
 def test_fit_weights_the_recordings_only_when_nothing_is_named_and_their_floors_differ():

@@ -15,8 +15,9 @@ Steps (each a module of its own):
    :func:`~.selection.decide`), after refitting the next screened candidates too when the
    provisional winner leaves the fit above two floors (:func:`~.selection.rivals`);
 5. keep the refitted model of the selected effect as the updated model;
-6. if that said "none" while a held-out recording is far off, exchange it with a similar fit
-   recording and run steps 1-5 again (:mod:`.split`);
+6. if that said "none" or named an effect while a held-out recording is far off, exchange it
+   with a similar fit recording and run steps 1-5 again (:mod:`.split`; a named effect stands
+   if the second pass names none);
 7. if no effect was named and the recordings' own noise floors differ by more than
    :data:`FLOOR_SPREAD`, run steps 1-5 again with each recording weighted by its own floor, and
    take that answer if it names an effect (``weighting="fallback"``).
@@ -235,12 +236,19 @@ class Diagnosis:
         Held-out recordings that the final model misses by more than ``rule.min_excess`` times
         the noise floor, with that ratio. A held-out recording can show what the fit recordings
         do not (another speed, the full-slip cliff); it never changes a verdict directly, but
-        beyond ``rule.max_remaining`` floors after a "none" it makes :meth:`fit` exchange it.
+        beyond ``rule.max_remaining`` floors after a "none" or a named effect it makes :meth:`fit`
+        exchange it.
     first_split_ : dict or None
-        When the split was exchanged: the first pass's ``heldout`` names, ``verdict``,
-        ``calibrated_fit_over_floor``, ``heldout_beyond_floor``, the ``exchanged`` pairs
-        (held-out name -> fit name), its ``seconds``, ``model_runs`` and ``failed_runs``
-        (included in ``timings_`` and ``n_runs_``). None otherwise.
+        When the split was exchanged and the second pass is the answer: the first pass's
+        ``heldout`` names, ``verdict``, ``selected``, ``calibrated_fit_over_floor``,
+        ``heldout_beyond_floor``, the ``exchanged`` pairs (held-out name -> fit name), its
+        ``seconds``, ``model_runs`` and ``failed_runs`` (included in ``timings_`` and
+        ``n_runs_``). None otherwise.
+    unused_split_ : dict or None
+        When the first pass named an effect, the split was exchanged, and the second pass named
+        none (so the first answer stands): what the second said (``verdict``, ``selected``,
+        ``calibrated_fit_over_floor``, ``seconds``, ``model_runs``, ``failed_runs``, included in
+        ``timings_`` and ``n_runs_``) and the ``exchanged`` pairs. None otherwise.
     timings_ : dict
         Wall-clock seconds per step.
     """
@@ -461,12 +469,13 @@ class Diagnosis:
         """Run the diagnosis on prepared recordings (:func:`.data.prepare`).
 
         At least one recording must have role ``"fit"``; held-out ones (role ``"heldout"``)
-        are never used to fit, only to select and to report. When the answer is "none" but a
-        held-out recording is missed by more than ``rule.max_remaining`` noise floors, the split
-        hid the mismatch: with ``exchange_split`` the diagnosis runs once more with that recording
-        among the fit ones and a similar fit recording held out instead
-        (:func:`.split.exchange_pairs`), and the second pass is the answer (``first_split_``
-        keeps what the first said).
+        are never used to fit, only to select and to report. When the answer is "none" or a
+        named effect but a held-out recording is missed by more than ``rule.max_remaining``
+        noise floors, the split may have hidden the mismatch: with ``exchange_split`` the
+        diagnosis runs once more with that recording among the fit ones and a similar fit
+        recording held out instead (:func:`.split.exchange_pairs`), and the second pass is the
+        answer (``first_split_`` keeps what the first said), except that a named effect stands
+        when the second pass names none (``unused_split_`` keeps what that said).
 
         With ``weighting="fallback"``, when that names no effect and the recordings' own noise
         floors differ by more than :data:`FLOOR_SPREAD`, the diagnosis runs once more with every
@@ -511,24 +520,40 @@ class Diagnosis:
 
         Returns the recordings with the roles of the pass that is the answer.
         """
-        self.first_split_ = None
+        self.first_split_ = self.unused_split_ = None
         self._fit_pass(recs, weighted)
         lim = self.rule.max_remaining
         missed = sorted((k for k, v in self.heldout_beyond_floor_.items() if v > lim),
                         key=lambda k: -self.heldout_beyond_floor_[k])
-        pairs = exchange_pairs(recs, missed) if self.exchange_split and self.verdict_ == "none" else {}
+        exchange = self.exchange_split and self.verdict_ in ("none", "selected")
+        pairs = exchange_pairs(recs, missed) if exchange else {}
         if pairs:
             first = {"heldout": [r.name for r in recs if r.role != "fit"], "verdict": self.verdict_,
+                     "selected": list(self.selected_),
                      "calibrated_fit_over_floor": self.calibrated_.rmse_fit / self.floor_,
                      "heldout_beyond_floor": dict(self.heldout_beyond_floor_), "exchanged": pairs,
                      "seconds": round(sum(self.timings_.values()), 2), "model_runs": self.n_runs_,
                      "failed_runs": self.n_failed_}
-            self.log("the fit recordings are reproduced but held-out "
-                     + ", ".join(f"{k} is {self.heldout_beyond_floor_[k]:.1f}x the floor" for k in pairs)
-                     + ": the split hid the mismatch; running again with "
+            which = "updated" if self.verdict_ == "selected" else "calibrated"
+            self.log(f"the {which} model reproduces the fit recordings but misses held-out "
+                     + ", ".join(f"{k} by {self.heldout_beyond_floor_[k]:.1f}x the floor" for k in pairs)
+                     + ": the split may have hidden the mismatch; running again with "
                      + ", ".join(f"{k} fitted and {v} held out" for k, v in pairs.items()))
+            state = dict(self.__dict__)
+            self._fit_pass(exchanged(recs, pairs), weighted)
+            if first["verdict"] == "selected" and self.verdict_ != "selected":
+                # the recording the named model missed, fitted, names nothing: the first answer
+                # stands (a recording near the full-slip cliff can be missed without anything
+                # missing from the model); the second pass is kept as a record
+                second = {**self._summary(), "exchanged": pairs}
+                self.log(f"with the split exchanged the diagnosis says {self.verdict_}: the first answer stands")
+                self.__dict__.update(state)
+                self.unused_split_ = second
+                self.timings_ = {"unused_split": second["seconds"], **self.timings_}
+                self.n_runs_ += second["model_runs"]
+                self.n_failed_ += second["failed_runs"]
+                return recs
             recs = exchanged(recs, pairs)
-            self._fit_pass(recs, weighted)
             self.first_split_ = first
             self.timings_ = {"first_split": first["seconds"], **self.timings_}
             self.n_runs_ += first["model_runs"]

@@ -226,7 +226,8 @@ def _to_json(d) -> dict:
                           "fit_rmse": fin.rmse_fit,
                           "per_recording": d.heldout_["after"]["per_recording"]}},
         "heldout_beyond_floor": [{"recording": k, "ratio": v} for k, v in d.heldout_beyond_floor_.items()],
-        "split": {"heldout": [r.name for r in d.recordings_ if r.role != "fit"], "first": d.first_split_},
+        "split": {"heldout": [r.name for r in d.recordings_ if r.role != "fit"], "first": d.first_split_,
+                  "unused": d.unused_split_},
         "noise_floor": d.floor_, "noise_floor_parts": d.floor_parts_,
         "noise_floor_per_recording": d.floor_per_recording_,
         "weights": d.weights_,
@@ -293,16 +294,28 @@ def _report_md(d, js) -> str:
               "decided between tracking and slipping on one such recording).", ""]
     if d.first_split_:
         f1 = d.first_split_
+        named = f1.get("selected")
+        said = (f"named {', '.join(named)}, whose updated model reproduced the fit recordings" if named else
+                f"said {f1['verdict']}: the calibrated base reproduced the fit recordings "
+                f"({f1['calibrated_fit_over_floor']:.2f}x the floor)")
         L += ["**Split exchanged.** A first pass with " + ", ".join(f"`{k}`" for k in f1["heldout"])
-              + f" held out said {f1['verdict']}: the calibrated base reproduced the fit recordings "
-              f"({f1['calibrated_fit_over_floor']:.2f}x the floor) but missed held-out "
+              + f" held out {said} but missed held-out "
               + ", ".join(f"`{k}` ({f1['heldout_beyond_floor'][k]:.1f}x)" for k in f1["exchanged"])
-              + " by more than " + f"{d.rule.max_remaining:g}x the floor, so the split hid the mismatch. "
-              "This diagnosis is the second pass, with "
+              + " by more than " + f"{d.rule.max_remaining:g}x the floor, so the split may have hidden "
+              "the mismatch. This diagnosis is the second pass, with "
               + ", ".join(f"`{k}` fitted and `{v}` held out instead" for k, v in f1["exchanged"].items())
               + f" (the fit recording most like it: same travel direction, then nearest speed, then "
               "nearest load). First pass: "
               f"{f1['seconds']:.0f} s, {f1['model_runs']} model runs.", ""]
+    if d.unused_split_:
+        u = d.unused_split_
+        L += ["**Split exchange tried.** The updated model misses held-out "
+              + ", ".join(f"`{k}` ({d.heldout_beyond_floor_[k]:.1f}x the floor)" for k in u["exchanged"])
+              + ". A second pass with " + ", ".join(f"`{k}` fitted and `{v}` held out" for k, v in u["exchanged"].items())
+              + f" said {u['verdict']} (calibrated base {u['calibrated_fit_over_floor']:.2f}x the floor; "
+              f"{u['seconds']:.0f} s, {u['model_runs']} model runs), so the effect named here stands; "
+              "that recording is either less reproducible than the floor says or shows something this "
+              "model does not have.", ""]
     o = d.weighting_["other_pass"]
     if o is not None:
         said = (f"{o['verdict']}" + (f" ({', '.join(o['selected'])})" if o["selected"] else "")
