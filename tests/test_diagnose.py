@@ -666,6 +666,29 @@ def test_fit_exchanges_the_split_only_when_a_heldout_recording_shows_what_the_fi
         assert len(d.seen) == 1 and d.first_split_ is None and d.unused_split_ is None
 
 
+def test_report_says_which_pass_of_an_exchanged_split_is_the_answer():
+    from szdyn.diagnose.report import _split_md
+
+    first = {"heldout": ["a_fast", "b_down"], "verdict": "selected", "selected": ["friction_asymmetry"],
+             "calibrated_fit_over_floor": 7.0, "heldout_beyond_floor": {"b_down": 26.6},
+             "exchanged": {"b_down": "a_down"}, "seconds": 598.0, "model_runs": 1574, "failed_runs": 0}
+    d = Namespace(first_split_=first, unused_split_=None, rule=SelectionRule(), heldout_beyond_floor_={})
+    (text, _) = _split_md(d)
+    assert text.startswith("**Split exchanged.**") and "named friction_asymmetry, but its updated model" in text
+    assert "`b_down` (26.6x)" in text and "`b_down` fitted and `a_down` held out instead" in text
+    d.first_split_ = {**first, "verdict": "none", "selected": []}
+    assert "said none: the calibrated base reproduced the fit recordings (7.00x the floor)" in _split_md(d)[0]
+    # the second pass named nothing: the first answer stands, and the report says what the second said
+    d = Namespace(first_split_=None, rule=SelectionRule(), heldout_beyond_floor_={"b_down": 26.6},
+                  unused_split_={"verdict": "unexplained", "selected": [], "calibrated_fit_over_floor": 3.2,
+                                 "seconds": 700.0, "model_runs": 1800, "failed_runs": 0,
+                                 "exchanged": {"b_down": "a_down"}})
+    (text, _) = _split_md(d)
+    assert text.startswith("**Split exchange tried.**") and "`b_down` (26.6x the floor)" in text
+    assert "said unexplained" in text and "the effect named here stands" in text
+    assert _split_md(Namespace(first_split_=None, unused_split_=None)) == []
+
+
 def test_fit_weights_the_recordings_only_when_nothing_is_named_and_their_floors_differ():
     from szdyn.diagnose.diagnosis import FLOOR_SPREAD
 

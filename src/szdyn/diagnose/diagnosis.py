@@ -535,7 +535,7 @@ class Diagnosis:
                      "seconds": round(sum(self.timings_.values()), 2), "model_runs": self.n_runs_,
                      "failed_runs": self.n_failed_}
             which = "updated" if self.verdict_ == "selected" else "calibrated"
-            self.log(f"the {which} model reproduces the fit recordings but misses held-out "
+            self.log(f"the {which} model misses held-out "
                      + ", ".join(f"{k} by {self.heldout_beyond_floor_[k]:.1f}x the floor" for k in pairs)
                      + ": the split may have hidden the mismatch; running again with "
                      + ", ".join(f"{k} fitted and {v} held out" for k, v in pairs.items()))

@@ -253,6 +253,36 @@ def _segments_md(segments) -> list:
                for m in segments])
 
 
+def _split_md(d) -> list:
+    """Report paragraphs on an exchanged split: the pass that is the answer, or the one that was not."""
+    L = []
+    if d.first_split_:
+        f1 = d.first_split_
+        named = f1.get("selected")
+        said = (f"named {', '.join(named)}, but its updated model missed held-out " if named else
+                f"said {f1['verdict']}: the calibrated base reproduced the fit recordings "
+                f"({f1['calibrated_fit_over_floor']:.2f}x the floor) but missed held-out ")
+        L += ["**Split exchanged.** A first pass with " + ", ".join(f"`{k}`" for k in f1["heldout"])
+              + f" held out {said}"
+              + ", ".join(f"`{k}` ({f1['heldout_beyond_floor'][k]:.1f}x)" for k in f1["exchanged"])
+              + " by more than " + f"{d.rule.max_remaining:g}x the floor, so the split may have hidden "
+              "the mismatch. This diagnosis is the second pass, with "
+              + ", ".join(f"`{k}` fitted and `{v}` held out instead" for k, v in f1["exchanged"].items())
+              + f" (the fit recording most like it: same travel direction, then nearest speed, then "
+              "nearest load). First pass: "
+              f"{f1['seconds']:.0f} s, {f1['model_runs']} model runs.", ""]
+    if d.unused_split_:
+        u = d.unused_split_
+        L += ["**Split exchange tried.** The updated model misses held-out "
+              + ", ".join(f"`{k}` ({d.heldout_beyond_floor_[k]:.1f}x the floor)" for k in u["exchanged"])
+              + ". A second pass with " + ", ".join(f"`{k}` fitted and `{v}` held out" for k, v in u["exchanged"].items())
+              + f" said {u['verdict']} (calibrated base {u['calibrated_fit_over_floor']:.2f}x the floor; "
+              f"{u['seconds']:.0f} s, {u['model_runs']} model runs), so the effect named here stands; "
+              "that recording is either less reproducible than the floor says or shows something this "
+              "model does not have.", ""]
+    return L
+
+
 def _report_md(d, js) -> str:
     L = ["# szdyn diagnosis", ""]
     v = d.verdict_
@@ -292,30 +322,7 @@ def _report_md(d, js) -> str:
               "manifest `[split]`, and run again), or they are less reproducible than the floor "
               "estimate says (near the full-slip cliff: on szdyn's grid a 2 % change of mu_k "
               "decided between tracking and slipping on one such recording).", ""]
-    if d.first_split_:
-        f1 = d.first_split_
-        named = f1.get("selected")
-        said = (f"named {', '.join(named)}, whose updated model reproduced the fit recordings" if named else
-                f"said {f1['verdict']}: the calibrated base reproduced the fit recordings "
-                f"({f1['calibrated_fit_over_floor']:.2f}x the floor)")
-        L += ["**Split exchanged.** A first pass with " + ", ".join(f"`{k}`" for k in f1["heldout"])
-              + f" held out {said} but missed held-out "
-              + ", ".join(f"`{k}` ({f1['heldout_beyond_floor'][k]:.1f}x)" for k in f1["exchanged"])
-              + " by more than " + f"{d.rule.max_remaining:g}x the floor, so the split may have hidden "
-              "the mismatch. This diagnosis is the second pass, with "
-              + ", ".join(f"`{k}` fitted and `{v}` held out instead" for k, v in f1["exchanged"].items())
-              + f" (the fit recording most like it: same travel direction, then nearest speed, then "
-              "nearest load). First pass: "
-              f"{f1['seconds']:.0f} s, {f1['model_runs']} model runs.", ""]
-    if d.unused_split_:
-        u = d.unused_split_
-        L += ["**Split exchange tried.** The updated model misses held-out "
-              + ", ".join(f"`{k}` ({d.heldout_beyond_floor_[k]:.1f}x the floor)" for k in u["exchanged"])
-              + ". A second pass with " + ", ".join(f"`{k}` fitted and `{v}` held out" for k, v in u["exchanged"].items())
-              + f" said {u['verdict']} (calibrated base {u['calibrated_fit_over_floor']:.2f}x the floor; "
-              f"{u['seconds']:.0f} s, {u['model_runs']} model runs), so the effect named here stands; "
-              "that recording is either less reproducible than the floor says or shows something this "
-              "model does not have.", ""]
+    L += _split_md(d)
     o = d.weighting_["other_pass"]
     if o is not None:
         said = (f"{o['verdict']}" + (f" ({', '.join(o['selected'])})" if o["selected"] else "")
