@@ -240,15 +240,16 @@ class Diagnosis:
         exchange it.
     first_split_ : dict or None
         When the split was exchanged and the second pass is the answer: the first pass's
-        ``heldout`` names, ``verdict``, ``selected``, ``calibrated_fit_over_floor``,
+        ``heldout`` names, ``weighted``, ``verdict``, ``selected``, ``calibrated_fit_over_floor``,
         ``heldout_beyond_floor``, the ``exchanged`` pairs (held-out name -> fit name), its
         ``seconds``, ``model_runs`` and ``failed_runs`` (included in ``timings_`` and
         ``n_runs_``). None otherwise.
     unused_split_ : dict or None
         When the first pass named an effect, the split was exchanged, and the second pass named
-        none (so the first answer stands): what the second said (``verdict``, ``selected``,
-        ``calibrated_fit_over_floor``, ``seconds``, ``model_runs``, ``failed_runs``, included in
-        ``timings_`` and ``n_runs_``) and the ``exchanged`` pairs. None otherwise.
+        none (so the first answer stands): what the second said (``weighted``, ``verdict``,
+        ``selected``, ``calibrated_fit_over_floor``, ``seconds``, ``model_runs``,
+        ``failed_runs``, included in ``timings_`` and ``n_runs_``) and the ``exchanged`` pairs.
+        None otherwise.
     timings_ : dict
         Wall-clock seconds per step.
     """
@@ -503,10 +504,16 @@ class Diagnosis:
                 self.__dict__.update(state)
             self.weighting_ = {**self.weighting_, "weighted": self.weighted_, "other_pass": other}
             key = "weighted_pass" if other["weighted"] else "unweighted_pass"
-            self.timings_ = {key: other["seconds"], **self.timings_}
-            self.n_runs_ += other["model_runs"]
-            self.n_failed_ += other["failed_runs"]
+            self._count_pass(key, other)
         return self
+
+    def _count_pass(self, key: str, other: dict) -> None:
+        """Add the cost of a pass that is not the answer (a record with ``seconds``,
+        ``model_runs`` and ``failed_runs``): under ``key`` first in ``timings_``, and to
+        ``n_runs_`` and ``n_failed_``."""
+        self.timings_ = {key: other["seconds"], **self.timings_}
+        self.n_runs_ += other["model_runs"]
+        self.n_failed_ += other["failed_runs"]
 
     def _summary(self) -> dict:
         """What the pass just run said, for the record of a pass that is not the answer."""
@@ -528,12 +535,8 @@ class Diagnosis:
         exchange = self.exchange_split and self.verdict_ in ("none", "selected")
         pairs = exchange_pairs(recs, missed) if exchange else {}
         if pairs:
-            first = {"heldout": [r.name for r in recs if r.role != "fit"], "verdict": self.verdict_,
-                     "selected": list(self.selected_),
-                     "calibrated_fit_over_floor": self.calibrated_.rmse_fit / self.floor_,
-                     "heldout_beyond_floor": dict(self.heldout_beyond_floor_), "exchanged": pairs,
-                     "seconds": round(sum(self.timings_.values()), 2), "model_runs": self.n_runs_,
-                     "failed_runs": self.n_failed_}
+            first = {"heldout": [r.name for r in recs if r.role != "fit"], **self._summary(),
+                     "heldout_beyond_floor": dict(self.heldout_beyond_floor_), "exchanged": pairs}
             which = "updated" if self.verdict_ == "selected" else "calibrated"
             self.log(f"the {which} model misses held-out "
                      + ", ".join(f"{k} by {self.heldout_beyond_floor_[k]:.1f}x the floor" for k in pairs)
@@ -549,15 +552,11 @@ class Diagnosis:
                 self.log(f"with the split exchanged the diagnosis says {self.verdict_}: the first answer stands")
                 self.__dict__.update(state)
                 self.unused_split_ = second
-                self.timings_ = {"unused_split": second["seconds"], **self.timings_}
-                self.n_runs_ += second["model_runs"]
-                self.n_failed_ += second["failed_runs"]
+                self._count_pass("unused_split", second)
                 return recs
             recs = exchanged(recs, pairs)
             self.first_split_ = first
-            self.timings_ = {"first_split": first["seconds"], **self.timings_}
-            self.n_runs_ += first["model_runs"]
-            self.n_failed_ += first["failed_runs"]
+            self._count_pass("first_split", first)
         return recs
 
     def _fit_pass(self, recs, weighted: bool = False) -> None:
