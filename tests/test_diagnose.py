@@ -16,14 +16,14 @@ import numpy as np
 import pytest
 
 from szdyn.diagnose.candidates import CALIBRATED, CANDIDATES, primary_std
-from szdyn.diagnose.command import choose_heldout
 from szdyn.diagnose.diagnosis import Diagnosis, probe_additions
 from szdyn.diagnose.engine import apply_sensor_transform, model_speed
 from szdyn.diagnose.fit import Hypothesis, fit_hypothesis, jacobian, linear_step
 from szdyn.diagnose.locate import FEATURES
 from szdyn.diagnose.selection import Decision, SelectionRule, decide, nominate, rivals, screen
-from szdyn.diagnose.split import exchange_pairs, exchanged
+from szdyn.diagnose.split import choose_heldout, exchange_pairs, exchanged, with_heldout
 from szdyn.params import param_names
+from szdyn.errors import UserInputError
 from szdyn.run import main as run_main
 from szdyn.synth import EFFECTS, RampSpec, synthesize
 
@@ -588,12 +588,6 @@ def test_probe_start_switches_on_an_effect_the_refits_left_off():
     assert d._probe_start(model, h, x_on, [0]) is None
 
 
-def test_choose_heldout():
-    assert choose_heldout(["a"]) == ()
-    assert choose_heldout(["a", "b"]) == ("b",)
-    assert choose_heldout(list("abcdef")) == ("b", "e")
-
-
 @dataclass
 class _Rec:
     """What the split exchange reads of a prepared recording."""
@@ -621,6 +615,39 @@ def test_exchange_pairs_hold_out_a_run_of_the_same_kind_at_another_load():
     # a fit recording is used once, and one always stays fitted
     two = [recs[0], recs[1], recs[4], recs[5]]
     assert exchange_pairs(two, ["a_fast", "b_down"]) == {"a_fast": "a_up"}
+
+
+def _grid(spec):
+    """Recordings ``load_kind`` in this order; kinds: up (pi rad/s), fast (2 pi), down (-pi)."""
+    w = {"up": math.pi, "fast": 2 * math.pi, "down": -math.pi}
+    return [_Rec(f"{load:g}_{kind}", "fit", load, np.full(5, w[kind])) for load, kind in spec]
+
+
+def test_choose_heldout_keeps_every_load_and_direction_among_the_fit_recordings():
+    # as many as every third from the second: none of one, 1 of 2-4, 2 of 5-7, 3 of 8-10
+    for n, k in [(1, 0), (2, 1), (4, 1), (5, 2), (7, 2), (8, 3), (10, 3)]:
+        assert len(choose_heldout(_grid([(0.5 * (i + 1), "up") for i in range(n)]))) == k
+    # the order every-third-from-the-second would hold out 0.5_down (the only backward run at
+    # 0.5 kg) and 1_fast: one forward run per load instead, one slow and one fast
+    recs = _grid([(0.5, "up"), (0.5, "down"), (0.5, "fast"), (1, "up"), (1, "down"), (1, "fast")])
+    assert choose_heldout(recs) == ("0.5_up", "1_fast")
+    # three loads, one run each way: the heaviest backward run stays fitted (out-of-sample
+    # friction_asymmetry 14 held it out), the held-out loads lie between fitted ones
+    recs = _grid([(load, kind) for load in (0.5, 1.0, 1.5) for kind in ("up", "down")])
+    held = choose_heldout(recs)
+    assert held == ("1_up", "1_down")
+    assert "1.5_down" not in choose_heldout(recs[::-1])
+    # many recordings (one at a time): still no (load, direction) left without a fit recording
+    recs = _grid([(load, kind) for load in (0.5, 1.0, 1.5) for kind in ("up", "down", "fast")] * 4)
+    for i, r in enumerate(recs):
+        r.name = f"{r.name}_{i}"
+    held = set(choose_heldout(recs))
+    assert len(held) == 12
+    cells = lambda rs: {(r.load_kg, np.sign(r.omega_w[0])) for r in rs}   # noqa: E731
+    assert cells(r for r in recs if r.name not in held) == cells(recs)
+    # roles follow the choice, fit recordings first
+    assert [(r.name, r.role) for r in with_heldout(recs[:3], ["0.5_up_0"])] == [
+        ("0.5_down_1", "fit"), ("0.5_fast_2", "fit"), ("0.5_up_0", "heldout")]
 
 
 class _ScriptedDiagnosis(Diagnosis):
@@ -870,6 +897,31 @@ def test_null_recordings_give_none(null):
     assert d["selected"] == [] and d["verdict"] == "none"
     assert d["fit"]["after"]["heldout_rmse"] == d["fit"]["before"]["heldout_rmse"]
     assert "Verdict: none" in (out / "report.md").read_text()
+
+
+def test_manifest_without_split_holds_out_what_choose_heldout_picks(null, monkeypatch, capsys):
+    """No ``[split]``: the command prepares every recording, holds out :func:`choose_heldout`'s
+    pick (from the recordings' loads, directions and speeds) and says so on stderr."""
+    from szdyn.diagnose import diagnosis
+    from szdyn.diagnose.data import prepare
+    from szdyn.manifest import read_manifest
+
+    _, _, out = null
+    data = out.parent / "data"
+    text = (data / "manifest.toml").read_text()
+    split = text[text.index("[split]"):text.index("[[recording]]")]
+    (data / "nosplit.toml").write_text(text.replace(split, ""))
+    seen = []
+
+    def stop(self, recs):
+        seen.extend((r.name, r.role) for r in recs)
+        raise UserInputError("stopped after the split")
+    monkeypatch.setattr(diagnosis.Diagnosis, "fit", stop)
+    assert run_main(["diagnose", str(data / "nosplit.toml"), "--out", str(out.parent / "nosplit")]) != 0
+    held = choose_heldout(prepare(read_manifest(data / "nosplit.toml")))
+    assert len(held) == 1 and [n for n, role in seen if role == "heldout"] == list(held)
+    assert [role for _, role in seen] == ["fit"] * 3 + ["heldout"]
+    assert f"no [split] in the manifest: holding out {held[0]}" in capsys.readouterr().err
 
 
 def test_weighted_diagnosis_of_null_recordings_gives_none(null, tmp_path):

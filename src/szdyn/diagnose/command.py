@@ -8,7 +8,7 @@ from pathlib import Path
 
 from ..errors import UserInputError
 
-__all__ = ["diagnose_command", "choose_heldout"]
+__all__ = ["diagnose_command"]
 
 
 class _Parser(argparse.ArgumentParser):
@@ -58,23 +58,13 @@ def _build_parser():
     return ap
 
 
-def choose_heldout(names) -> tuple:
-    """Held-out recordings when the manifest has no ``[split]``: every third, from the second
-    (1 of 2 or 3, 2 of 4-6, ...); none with a single recording."""
-    names = list(names)
-    if len(names) < 2:
-        return ()
-    return tuple(names[1::3])
-
-
 def diagnose_command(argv) -> int:
-    from dataclasses import replace
-
     from ..manifest import read_manifest
     from .candidates import CANDIDATES
     from .data import prepare
     from .diagnosis import Diagnosis
     from .report import write_report
+    from .split import choose_heldout, with_heldout
 
     args = _build_parser().parse_args(argv)
     if args.shortlist < 1:
@@ -111,11 +101,13 @@ def diagnose_command(argv) -> int:
             log(f"{runs[0]} model runs")
 
     man = read_manifest(args.manifest)
-    if not man.heldout:
-        man = replace(man, heldout=choose_heldout(e.name for e in man.entries))
-        if man.heldout:
-            log(f"no [split] in the manifest: holding out {', '.join(man.heldout)}")
     recs = prepare(man)
+    if not man.heldout:
+        held = choose_heldout(recs)
+        recs = with_heldout(recs, held)
+        if held:
+            log(f"no [split] in the manifest: holding out {', '.join(held)} (every load and direction "
+                "kept among the fit recordings where they allow)")
     log(f"{len(recs)} recording(s): {sum(r.role == 'fit' for r in recs)} fit, "
         f"{sum(r.role != 'fit' for r in recs)} held out")
     d = Diagnosis(cands, shortlist=args.shortlist, nominate_r2=args.nominate_r2,

@@ -9,14 +9,23 @@ again; :func:`exchange_pairs` says which fit recording goes the other way, so th
 set keeps its size and covers the same kind of run (same travel direction and speed, another
 load, where the recordings allow). On that case the second pass named friction_asymmetry with
 fric_asym 1.8 % off the truth.
+
+When the manifest names no held-out recordings, :func:`choose_heldout` picks them so that the
+split does not hide a condition in the first place: every load and travel direction stays
+among the fit recordings where the recordings allow, and a held-out recording sits inside the
+loads and speeds the fit recordings span (the model interpolates to it).
 """
 from __future__ import annotations
 
+import itertools
 import math
 
 import numpy as np
 
-__all__ = ["exchange_pairs", "exchanged"]
+__all__ = ["choose_heldout", "with_heldout", "exchange_pairs", "exchanged"]
+
+#: largest number of held-out sets :func:`choose_heldout` compares one by one (then greedy)
+_EXHAUSTIVE = 5000
 
 
 def _direction(rec) -> float:
@@ -71,5 +80,88 @@ def exchanged(recs, pairs) -> list:
 
     swap = set(pairs) | set(pairs.values())
     out = [replace(r, role="heldout" if r.role == "fit" else "fit") if r.name in swap else r for r in recs]
+    out.sort(key=lambda r: r.role != "fit")
+    return out
+
+
+def _conditions(rec) -> tuple:
+    """(load key, load kg, direction, speed rad/s) of a prepared recording; the load key is
+    rounded, None when the manifest gives no load."""
+    x = rec.load_kg
+    return (round(x, 6) if math.isfinite(x) else None), x, _direction(rec), _speed(rec)
+
+
+def _split_cost(cond, held) -> tuple:
+    """How much the split with held-out indices ``held`` hides from the fit (lower is better).
+
+    ``cond`` holds :func:`_conditions` of every recording. In order: (load, direction) cells
+    left without a fit recording; held-out recordings outside the loads or speeds that the fit
+    recordings of their direction span (extrapolation, 10 % slack on speed); loads and
+    directions left without a fit recording; and, negated, how varied the held-out set is
+    (distinct loads + directions + speeds in 25 % classes).
+    """
+    held = set(held)
+    fit = [c for i, c in enumerate(cond) if i not in held]
+    out = [cond[i] for i in sorted(held)]
+    lost_cells = len({c[0::2] for c in out} - {c[0::2] for c in fit})
+    outside = 0
+    for key, load, d, w in out:
+        same = [c for c in fit if c[2] == d]
+        loads = [c[1] for c in same if math.isfinite(c[1])]
+        if not same:
+            outside += 1
+        elif math.isfinite(load) and loads and not min(loads) - 1e-9 <= load <= max(loads) + 1e-9:
+            outside += 1
+        elif not 0.9 * min(c[3] for c in same) <= w <= 1.1 * max(c[3] for c in same):
+            outside += 1
+    lost_margins = len({c[0] for c in out} - {c[0] for c in fit}) + len({c[2] for c in out} - {c[2] for c in fit})
+    variety = (len({c[0] for c in out}) + len({c[2] for c in out})
+               + len({round(math.log(max(c[3], 1e-9)) / math.log(1.25)) for c in out}))
+    return lost_cells, outside, lost_margins, -variety
+
+
+def choose_heldout(recs) -> tuple:
+    """Held-out recordings when the manifest has no ``[split]``.
+
+    As many as every third recording from the second would give (none of a single recording,
+    1 of 2-4, 2 of 5-7, ...), chosen to keep the fit recordings covering the conditions:
+    the set with the lowest :func:`_split_cost` (every set when there are at most 5000, else
+    one recording at a time), ties to the earliest in manifest order. Holding out the only
+    backward run at the heaviest load, say, would leave the fit blind to anything that only
+    shows there (out-of-sample friction_asymmetry seeds 14 and 18).
+
+    Parameters
+    ----------
+    recs : list of Prepared
+        In manifest order; reads ``name``, ``load_kg`` and ``omega_w`` (direction: sign of the
+        mean wheel speed; speed: its RMS).
+
+    Returns
+    -------
+    tuple of str
+        Names of the held-out recordings, in manifest order.
+    """
+    n = len(recs)
+    k = len(range(1, n, 3))
+    if k == 0:
+        return ()
+    cond = [_conditions(r) for r in recs]
+    if math.comb(n, k) <= _EXHAUSTIVE:
+        best = min(itertools.combinations(range(n), k), key=lambda h: (_split_cost(cond, h), h))
+    else:
+        best = ()
+        for _ in range(k):
+            i = min((j for j in range(n) if j not in best),
+                    key=lambda j: (_split_cost(cond, best + (j,)), j))
+            best = best + (i,)
+    return tuple(recs[i].name for i in sorted(best))
+
+
+def with_heldout(recs, names) -> list:
+    """Copies of ``recs`` with exactly ``names`` held out, fit recordings first."""
+    from dataclasses import replace
+
+    names = set(names)
+    out = [replace(r, role="heldout" if r.name in names else "fit") for r in recs]
     out.sort(key=lambda r: r.role != "fit")
     return out
