@@ -22,7 +22,7 @@ import math
 
 import numpy as np
 
-__all__ = ["choose_heldout", "with_heldout", "exchange_pairs", "exchanged"]
+__all__ = ["choose_heldout", "least_hiding", "split_cost", "with_heldout", "exchange_pairs", "exchanged"]
 
 #: largest number of held-out sets :func:`choose_heldout` compares one by one (then greedy)
 _EXHAUSTIVE = 5000
@@ -84,17 +84,24 @@ def exchanged(recs, pairs) -> list:
     return out
 
 
+def conditions(load_kg: float, direction: float, speed: float) -> tuple:
+    """What :func:`split_cost` reads of one recording: ``(load key, load kg, direction, speed)``.
+
+    ``load_kg`` NaN when unknown (the key is then None; otherwise the load rounded), direction
+    +1/-1 (0: standing), speed a typical drive speed (rad/s; compared within a direction).
+    """
+    x = float(load_kg)
+    return (round(x, 6) if math.isfinite(x) else None), x, float(direction), float(speed)
+
+
 def _conditions(rec) -> tuple:
-    """(load key, load kg, direction, speed rad/s) of a prepared recording; the load key is
-    rounded, None when the manifest gives no load."""
-    x = rec.load_kg
-    return (round(x, 6) if math.isfinite(x) else None), x, _direction(rec), _speed(rec)
+    return conditions(rec.load_kg, _direction(rec), _speed(rec))
 
 
-def _split_cost(cond, held) -> tuple:
+def split_cost(cond, held) -> tuple:
     """How much the split with held-out indices ``held`` hides from the fit (lower is better).
 
-    ``cond`` holds :func:`_conditions` of every recording. In order: (load, direction) cells
+    ``cond`` holds :func:`conditions` of every recording. In order: (load, direction) cells
     left without a fit recording; held-out recordings outside the loads or speeds that the fit
     recordings of their direction span (extrapolation, 10 % slack on speed); loads and
     directions left without a fit recording; and, negated, how varied the held-out set is
@@ -125,8 +132,8 @@ def choose_heldout(recs) -> tuple:
 
     As many as every third recording from the second would give (none of a single recording,
     1 of 2-4, 2 of 5-7, ...), chosen to keep the fit recordings covering the conditions:
-    the set with the lowest :func:`_split_cost` (every set when there are at most 5000, else
-    one recording at a time), ties to the earliest in manifest order. Holding out the only
+    the set with the lowest :func:`split_cost` (:func:`least_hiding`), ties to the earliest in
+    manifest order. Holding out the only
     backward run at the heaviest load, say, would leave the fit blind to anything that only
     shows there (out-of-sample friction_asymmetry seeds 14 and 18).
 
@@ -141,20 +148,33 @@ def choose_heldout(recs) -> tuple:
     tuple of str
         Names of the held-out recordings, in manifest order.
     """
-    n = len(recs)
-    k = len(range(1, n, 3))
-    if k == 0:
+    best = least_hiding([_conditions(r) for r in recs], len(range(1, len(recs), 3)))
+    return tuple(recs[i].name for i in best)
+
+
+def least_hiding(cond, k: int) -> tuple:
+    """The ``k`` held-out indices with the lowest :func:`split_cost`, ties to the earliest.
+
+    Every set is compared when there are at most ``_EXHAUSTIVE`` (5000), else they are added
+    one at a time. The first set tried is ``0 .. k-1``, so a caller that orders ``cond`` by
+    preference keeps its first choice unless another hides less.
+
+    Returns
+    -------
+    tuple of int
+        Sorted indices into ``cond`` (empty for ``k`` = 0).
+    """
+    n = len(cond)
+    if k <= 0:
         return ()
-    cond = [_conditions(r) for r in recs]
     if math.comb(n, k) <= _EXHAUSTIVE:
-        best = min(itertools.combinations(range(n), k), key=lambda h: (_split_cost(cond, h), h))
+        best = min(itertools.combinations(range(n), k), key=lambda h: (split_cost(cond, h), h))
     else:
         best = ()
         for _ in range(k):
-            i = min((j for j in range(n) if j not in best),
-                    key=lambda j: (_split_cost(cond, best + (j,)), j))
+            i = min((j for j in range(n) if j not in best), key=lambda j: (split_cost(cond, best + (j,)), j))
             best = best + (i,)
-    return tuple(recs[i].name for i in sorted(best))
+    return tuple(sorted(best))
 
 
 def with_heldout(recs, names) -> list:
