@@ -699,7 +699,8 @@ def test_report_says_which_pass_of_an_exchanged_split_is_the_answer():
     first = {"heldout": ["a_fast", "b_down"], "verdict": "selected", "selected": ["friction_asymmetry"],
              "calibrated_fit_over_floor": 7.0, "heldout_beyond_floor": {"b_down": 26.6},
              "exchanged": {"b_down": "a_down"}, "seconds": 598.0, "model_runs": 1574, "failed_runs": 0}
-    d = Namespace(first_split_=first, unused_split_=None, rule=SelectionRule(), heldout_beyond_floor_={})
+    d = Namespace(first_split_=first, unused_split_=None, rule=SelectionRule(), heldout_beyond_floor_={},
+                  hidden_conditions_=[])
     (text, _) = _split_md(d)
     assert text.startswith("**Split exchanged.**") and "named friction_asymmetry, but its updated model" in text
     assert "`b_down` (26.6x)" in text and "`b_down` fitted and `a_down` held out instead" in text
@@ -707,13 +708,28 @@ def test_report_says_which_pass_of_an_exchanged_split_is_the_answer():
     assert "said none: the calibrated base reproduced the fit recordings (7.00x the floor)" in _split_md(d)[0]
     # the second pass named nothing: the first answer stands, and the report says what the second said
     d = Namespace(first_split_=None, rule=SelectionRule(), heldout_beyond_floor_={"b_down": 26.6},
-                  unused_split_={"verdict": "unexplained", "selected": [], "calibrated_fit_over_floor": 3.2,
+                  hidden_conditions_=[], unused_split_={"verdict": "unexplained", "selected": [], "calibrated_fit_over_floor": 3.2,
                                  "seconds": 700.0, "model_runs": 1800, "failed_runs": 0,
                                  "exchanged": {"b_down": "a_down"}})
     (text, _) = _split_md(d)
     assert text.startswith("**Split exchange tried.**") and "`b_down` (26.6x the floor)" in text
     assert "said unexplained" in text and "the effect named here stands" in text
-    assert _split_md(Namespace(first_split_=None, unused_split_=None)) == []
+    assert _split_md(Namespace(first_split_=None, unused_split_=None, hidden_conditions_=[])) == []
+
+
+def test_split_that_holds_out_the_only_run_of_a_condition_is_reported():
+    from szdyn.diagnose.report import _split_md
+    from szdyn.diagnose.split import hidden_conditions
+
+    # b_down is the only backward run at 1 kg; a_fast has a fitted twin condition (a_up)
+    hidden = hidden_conditions(_runs())
+    assert hidden == [{"load_kg": 1.0, "direction": -1.0, "travel": "backward", "recordings": ["b_down"]}]
+    (text, _) = _split_md(Namespace(first_split_=None, unused_split_=None, hidden_conditions_=hidden))
+    assert text.startswith("**The split hides a condition.** Only held-out `b_down` runs backward at 1 kg")
+    # exchanged so that it is fitted: nothing hidden
+    assert hidden_conditions(exchanged(_runs(), {"b_down": "a_down"})) == [
+        {"load_kg": 0.5, "direction": -1.0, "travel": "backward", "recordings": ["a_down"]}]
+    assert hidden_conditions(with_heldout(_runs(), ["a_fast", "b_up"])) == []
 
 
 def test_fit_weights_the_recordings_only_when_nothing_is_named_and_their_floors_differ():

@@ -48,7 +48,7 @@ from .fit import Hypothesis, fit_hypothesis, jacobian, linear_step
 from .locate import follows, locate
 from .noise import bump_noise, sensor_noise
 from .selection import SelectionRule, decide, nominate, rivals, screen
-from .split import exchange_pairs, exchanged
+from .split import exchange_pairs, exchanged, hidden_conditions
 
 __all__ = ["FIT_TOL", "FLOOR_SPREAD", "WEIGHTINGS", "Diagnosis", "probe_additions"]
 
@@ -250,6 +250,9 @@ class Diagnosis:
         ``selected``, ``calibrated_fit_over_floor``, ``seconds``, ``model_runs``,
         ``failed_runs``, included in ``timings_`` and ``n_runs_``) and the ``exchanged`` pairs.
         None otherwise.
+    hidden_conditions_ : list of dict
+        (load, travel direction) conditions that only held-out recordings of the answer's split
+        have (:func:`.split.hidden_conditions`): the fit could not see what shows only there.
     timings_ : dict
         Wall-clock seconds per step.
     """
@@ -505,6 +508,7 @@ class Diagnosis:
             self.weighting_ = {**self.weighting_, "weighted": self.weighted_, "other_pass": other}
             key = "weighted_pass" if other["weighted"] else "unweighted_pass"
             self._count_pass(key, other)
+        self.hidden_conditions_ = hidden_conditions(self.recordings_)
         return self
 
     def _count_pass(self, key: str, other: dict) -> None:

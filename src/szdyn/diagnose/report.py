@@ -227,7 +227,7 @@ def _to_json(d) -> dict:
                           "per_recording": d.heldout_["after"]["per_recording"]}},
         "heldout_beyond_floor": [{"recording": k, "ratio": v} for k, v in d.heldout_beyond_floor_.items()],
         "split": {"heldout": [r.name for r in d.recordings_ if r.role != "fit"], "first": d.first_split_,
-                  "unused": d.unused_split_},
+                  "unused": d.unused_split_, "hidden": d.hidden_conditions_},
         "noise_floor": d.floor_, "noise_floor_parts": d.floor_parts_,
         "noise_floor_per_recording": d.floor_per_recording_,
         "weights": d.weights_,
@@ -254,8 +254,18 @@ def _segments_md(segments) -> list:
 
 
 def _split_md(d) -> list:
-    """Report paragraphs on an exchanged split: the pass that is the answer, or the one that was not."""
+    """Report paragraphs on the split: conditions only held-out recordings have, and an exchanged
+    split (the pass that is the answer, or the one that was not)."""
     L = []
+    for c in d.hidden_conditions_:
+        load = "an unknown load" if c["load_kg"] is None else f"{c['load_kg']:g} kg"
+        L += ["**The split hides a condition.** Only held-out "
+              + ", ".join(f"`{k}`" for k in c["recordings"])
+              + f" run{'s' if len(c['recordings']) == 1 else ''} {c['travel']} at {load}: the fit never "
+              "sees that condition, so an effect that shows mostly there (friction that depends on the "
+              "direction, the payload's weight) can be missed or mis-sized, and the held-out error is "
+              "the only sign of it. To fit it, hold out another recording instead (manifest "
+              "`[split]`) and run again.", ""]
     if d.first_split_:
         f1 = d.first_split_
         named = f1.get("selected")

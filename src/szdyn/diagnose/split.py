@@ -22,7 +22,8 @@ import math
 
 import numpy as np
 
-__all__ = ["choose_heldout", "least_hiding", "split_cost", "with_heldout", "exchange_pairs", "exchanged"]
+__all__ = ["choose_heldout", "hidden_conditions", "least_hiding", "split_cost", "with_heldout",
+           "exchange_pairs", "exchanged"]
 
 #: largest number of held-out sets :func:`choose_heldout` compares one by one (then greedy)
 _EXHAUSTIVE = 5000
@@ -185,3 +186,32 @@ def with_heldout(recs, names) -> list:
     out = [replace(r, role="heldout" if r.name in names else "fit") for r in recs]
     out.sort(key=lambda r: r.role != "fit")
     return out
+
+
+def hidden_conditions(recs) -> list:
+    """The (load, direction) conditions that only held-out recordings have.
+
+    The fit cannot see what shows only there (friction asymmetry at the heavier load, say);
+    the report says so, since the held-out error is then the only sign of it.
+
+    Parameters
+    ----------
+    recs : list of Prepared
+        With their roles.
+
+    Returns
+    -------
+    list of dict
+        ``load_kg`` (None when the manifest gives none), ``direction`` (+1/-1 sign of the mean
+        wheel speed, 0 standing), ``travel`` ("forward", "backward", "standing") and
+        ``recordings`` (names), in recording order.
+    """
+    fit = {_conditions(r)[0::2] for r in recs if r.role == "fit"}
+    out = {}
+    for r in recs:
+        cell = _conditions(r)[0::2]
+        if r.role != "fit" and cell not in fit:
+            out.setdefault(cell, []).append(r.name)
+    travel = {1.0: "forward", -1.0: "backward", 0.0: "standing"}
+    return [{"load_kg": load, "direction": d, "travel": travel[d], "recordings": names}
+            for (load, d), names in out.items()]
