@@ -25,7 +25,7 @@ import numpy as np
 __all__ = ["choose_heldout", "hidden_conditions", "least_hiding", "split_cost", "with_heldout",
            "exchange_pairs", "exchanged"]
 
-#: largest number of held-out sets :func:`choose_heldout` compares one by one (then greedy)
+#: largest number of held-out sets :func:`least_hiding` compares one by one (beyond: greedy)
 _EXHAUSTIVE = 5000
 
 
@@ -134,9 +134,9 @@ def choose_heldout(recs) -> tuple:
     As many as every third recording from the second would give (none of a single recording,
     1 of 2-4, 2 of 5-7, ...), chosen to keep the fit recordings covering the conditions:
     the set with the lowest :func:`split_cost` (:func:`least_hiding`), ties to the earliest in
-    manifest order. Holding out the only
-    backward run at the heaviest load, say, would leave the fit blind to anything that only
-    shows there (out-of-sample friction_asymmetry seeds 14 and 18).
+    manifest order. Holding out the only backward run at the heaviest load, say, would leave
+    the fit blind to anything that shows only there (out-of-sample friction_asymmetry seeds 14
+    and 18).
 
     Parameters
     ----------
