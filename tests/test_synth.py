@@ -34,9 +34,9 @@ def none_dir(tmp_path_factory):
 
 
 def test_split_keeps_every_load_and_direction_among_the_fit_recordings():
-    # the grid's design (two loads x up_pi, up_2pi, down_pi): the seeded diagonal held out the
-    # 1 kg backward run on seeds 12, 14, 18, 20, 22, 24-31; now every seed fits a run each way at
-    # each load and holds out one forward run per load
+    # the grid's design (two loads x up_pi, up_2pi, down_pi): the seeded diagonal held out a
+    # backward run on 16 of seeds 11-31 (1 kg: 12, 14, 18, 20, 22, 24-31; 0.5 kg: 15, 16, 19);
+    # now every seed fits a run each way at each load and holds out one forward run per load
     cells = {(i, math.copysign(1, r.omega_hold)) for i in range(2) for r in DEFAULT_RAMPS}
     splits = set()
     for seed in range(11, 32):

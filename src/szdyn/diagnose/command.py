@@ -106,8 +106,8 @@ def diagnose_command(argv) -> int:
         held = choose_heldout(recs)
         recs = with_heldout(recs, held)
         if held:
-            log(f"no [split] in the manifest: holding out {', '.join(held)} (every load and direction "
-                "kept among the fit recordings where they allow)")
+            log(f"no [split] in the manifest: holding out {', '.join(held)} (every load-direction "
+                "pair kept among the fit recordings where they allow)")
     log(f"{len(recs)} recording(s): {sum(r.role == 'fit' for r in recs)} fit, "
         f"{sum(r.role != 'fit' for r in recs)} held out")
     d = Diagnosis(cands, shortlist=args.shortlist, nominate_r2=args.nominate_r2,

@@ -259,13 +259,16 @@ def _split_md(d) -> list:
     L = []
     for c in d.hidden_conditions_:
         load = "an unknown load" if c["load_kg"] is None else f"{c['load_kg']:g} kg"
+        one = len(c["recordings"]) == 1
+        verb = {"forward": "run{} forward", "backward": "run{} backward",
+                "standing": "stand{} still"}[c["travel"]].format("s" if one else "")
         L += ["**The split hides a condition.** Only held-out "
               + ", ".join(f"`{k}`" for k in c["recordings"])
-              + f" run{'s' if len(c['recordings']) == 1 else ''} {c['travel']} at {load}: the fit never "
-              "sees that condition, so an effect that shows mostly there (friction that depends on the "
-              "direction, the payload's weight) can be missed or mis-sized, and the held-out error is "
-              "the only sign of it. To fit it, hold out another recording instead (manifest "
-              "`[split]`) and run again.", ""]
+              + f" {verb} at {load}: the fit never sees that condition, so an effect that shows "
+              "mostly there (friction that depends on the direction, the payload's weight) can be "
+              "missed or mis-sized, and the held-out error is the only sign of it. To let the fit "
+              "see it, hold out another recording instead (manifest `[split]`), or record a second "
+              "run of that condition, and run again.", ""]
     if d.first_split_:
         f1 = d.first_split_
         named = f1.get("selected")

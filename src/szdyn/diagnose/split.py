@@ -11,22 +11,19 @@ load, where the recordings allow). On that case the second pass named friction_a
 fric_asym 1.8 % off the truth.
 
 When the manifest names no held-out recordings, :func:`choose_heldout` picks them so that the
-split does not hide a condition in the first place: every load and travel direction stays
-among the fit recordings where the recordings allow, and a held-out recording sits inside the
-loads and speeds the fit recordings span (the model interpolates to it).
+split does not hide a condition in the first place (:mod:`szdyn.heldout`): every (load, travel
+direction) pair keeps a fit recording where the recordings allow, and a held-out recording
+sits inside the loads and speeds fitted in its direction (the model interpolates to it).
 """
 from __future__ import annotations
 
-import itertools
 import math
 
 import numpy as np
 
-__all__ = ["choose_heldout", "hidden_conditions", "least_hiding", "split_cost", "with_heldout",
-           "exchange_pairs", "exchanged"]
+from ..heldout import least_hiding, split_features
 
-#: largest number of held-out sets :func:`least_hiding` compares one by one (beyond: greedy)
-_EXHAUSTIVE = 5000
+__all__ = ["choose_heldout", "hidden_conditions", "with_heldout", "exchange_pairs", "exchanged"]
 
 
 def _direction(rec) -> float:
@@ -85,58 +82,20 @@ def exchanged(recs, pairs) -> list:
     return out
 
 
-def conditions(load_kg: float, direction: float, speed: float) -> tuple:
-    """What :func:`split_cost` reads of one recording: ``(load key, load kg, direction, speed)``.
-
-    ``load_kg`` NaN when unknown (the key is then None; otherwise the load rounded), direction
-    +1/-1 (0: standing), speed a typical drive speed (rad/s; compared within a direction).
-    """
-    x = float(load_kg)
-    return (round(x, 6) if math.isfinite(x) else None), x, float(direction), float(speed)
-
-
-def _conditions(rec) -> tuple:
-    return conditions(rec.load_kg, _direction(rec), _speed(rec))
-
-
-def split_cost(cond, held) -> tuple:
-    """How much the split with held-out indices ``held`` hides from the fit (lower is better).
-
-    ``cond`` holds :func:`conditions` of every recording. In order: (load, direction) cells
-    left without a fit recording; held-out recordings outside the loads or speeds that the fit
-    recordings of their direction span (extrapolation, 10 % slack on speed); loads and
-    directions left without a fit recording; and, negated, how varied the held-out set is
-    (distinct loads + directions + speeds in 25 % classes).
-    """
-    held = set(held)
-    fit = [c for i, c in enumerate(cond) if i not in held]
-    out = [cond[i] for i in sorted(held)]
-    lost_cells = len({c[0::2] for c in out} - {c[0::2] for c in fit})
-    outside = 0
-    for key, load, d, w in out:
-        same = [c for c in fit if c[2] == d]
-        loads = [c[1] for c in same if math.isfinite(c[1])]
-        if not same:
-            outside += 1
-        elif math.isfinite(load) and loads and not min(loads) - 1e-9 <= load <= max(loads) + 1e-9:
-            outside += 1
-        elif not 0.9 * min(c[3] for c in same) <= w <= 1.1 * max(c[3] for c in same):
-            outside += 1
-    lost_margins = len({c[0] for c in out} - {c[0] for c in fit}) + len({c[2] for c in out} - {c[2] for c in fit})
-    variety = (len({c[0] for c in out}) + len({c[2] for c in out})
-               + len({round(math.log(max(c[3], 1e-9)) / math.log(1.25)) for c in out}))
-    return lost_cells, outside, lost_margins, -variety
+def _features(rec):
+    return split_features(rec.load_kg, _direction(rec), _speed(rec))
 
 
 def choose_heldout(recs) -> tuple:
     """Held-out recordings when the manifest has no ``[split]``.
 
     As many as every third recording from the second would give (none of a single recording,
-    1 of 2-4, 2 of 5-7, ...), chosen to keep the fit recordings covering the conditions:
-    the set with the lowest :func:`split_cost` (:func:`least_hiding`), ties to the earliest in
-    manifest order. Holding out the only backward run at the heaviest load, say, would leave
-    the fit blind to anything that shows only there (out-of-sample friction_asymmetry seeds 14
-    and 18).
+    1 of 2-4, 2 of 5-7, ...), chosen by :func:`szdyn.heldout.least_hiding` with the manifest's
+    order as preference: every (load, direction) pair keeps a fit recording where the
+    recordings allow, then the held-out ones lie within the loads and speeds fitted in their
+    direction, then every load and direction keeps a fit recording. Holding out the only
+    backward run at the heaviest load, say, would leave the fit blind to anything that shows
+    only there (out-of-sample friction_asymmetry seeds 14 and 18).
 
     Parameters
     ----------
@@ -149,33 +108,8 @@ def choose_heldout(recs) -> tuple:
     tuple of str
         Names of the held-out recordings, in manifest order.
     """
-    best = least_hiding([_conditions(r) for r in recs], len(range(1, len(recs), 3)))
+    best = least_hiding([_features(r) for r in recs], len(range(1, len(recs), 3)))
     return tuple(recs[i].name for i in best)
-
-
-def least_hiding(cond, k: int) -> tuple:
-    """The ``k`` held-out indices with the lowest :func:`split_cost`, ties to the earliest.
-
-    Every set is compared when there are at most ``_EXHAUSTIVE`` (5000), else they are added
-    one at a time. The first set tried is ``0 .. k-1``, so a caller that orders ``cond`` by
-    preference keeps its first choice unless another hides less.
-
-    Returns
-    -------
-    tuple of int
-        Sorted indices into ``cond`` (empty for ``k`` = 0).
-    """
-    n = len(cond)
-    if k <= 0:
-        return ()
-    if math.comb(n, k) <= _EXHAUSTIVE:
-        best = min(itertools.combinations(range(n), k), key=lambda h: (split_cost(cond, h), h))
-    else:
-        best = ()
-        for _ in range(k):
-            i = min((j for j in range(n) if j not in best), key=lambda j: (split_cost(cond, best + (j,)), j))
-            best = best + (i,)
-    return tuple(sorted(best))
 
 
 def with_heldout(recs, names) -> list:
@@ -206,10 +140,14 @@ def hidden_conditions(recs) -> list:
         wheel speed, 0 standing), ``travel`` ("forward", "backward", "standing") and
         ``recordings`` (names), in recording order.
     """
-    fit = {_conditions(r)[0::2] for r in recs if r.role == "fit"}
+    def pair(r):
+        f = _features(r)
+        return f.load_key, f.direction
+
+    fit = {pair(r) for r in recs if r.role == "fit"}
     out = {}
     for r in recs:
-        cell = _conditions(r)[0::2]
+        cell = pair(r)
         if r.role != "fit" and cell not in fit:
             out.setdefault(cell, []).append(r.name)
     travel = {1.0: "forward", -1.0: "backward", 0.0: "standing"}
