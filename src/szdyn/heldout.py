@@ -15,7 +15,7 @@ import itertools
 import math
 from typing import NamedTuple
 
-__all__ = ["SplitFeatures", "SplitCost", "split_features", "split_cost", "least_hiding"]
+__all__ = ["SplitFeatures", "SplitCost", "split_features", "lost_pairs", "split_cost", "least_hiding"]
 
 #: largest number of held-out sets :func:`least_hiding` compares one by one (beyond: swaps)
 EXHAUSTIVE = 5000
@@ -67,6 +67,30 @@ def _speed_class(w: float) -> int:
     return round(math.log(max(w, 1e-9)) / math.log(1.25))
 
 
+def lost_pairs(feats, held) -> dict:
+    """The (load key, direction) pairs that only held-out recordings have.
+
+    Parameters
+    ----------
+    feats : sequence of SplitFeatures
+    held : iterable of int
+        Indices of the held-out recordings.
+
+    Returns
+    -------
+    dict of (float or None, float) -> list of int
+        Each such pair with its held-out indices, in index order.
+    """
+    held = set(held)
+    fit = {(f.load_key, f.direction) for i, f in enumerate(feats) if i not in held}
+    out = {}
+    for i in sorted(held):
+        pair = (feats[i].load_key, feats[i].direction)
+        if pair not in fit:
+            out.setdefault(pair, []).append(i)
+    return out
+
+
 def split_cost(feats, held) -> SplitCost:
     """How much the split with held-out indices ``held`` hides from the fit.
 
@@ -87,8 +111,6 @@ def split_cost(feats, held) -> SplitCost:
     held = set(held)
     fit = [f for i, f in enumerate(feats) if i not in held]
     out = [feats[i] for i in sorted(held)]
-    pair = lambda f: (f.load_key, f.direction)   # noqa: E731
-    lost_pairs = len({pair(f) for f in out} - {pair(f) for f in fit})
     outside = 0
     for f in out:
         same = [g for g in fit if g.direction == f.direction]
@@ -103,7 +125,7 @@ def split_cost(feats, held) -> SplitCost:
                     + len({f.direction for f in out} - {f.direction for f in fit}))
     variety = (len({f.load_key for f in out}) + len({f.direction for f in out})
                + len({_speed_class(f.speed) for f in out}))
-    return SplitCost(lost_pairs, outside, lost_margins, -variety)
+    return SplitCost(len(lost_pairs(feats, held)), outside, lost_margins, -variety)
 
 
 def least_hiding(feats, k: int) -> tuple:

@@ -324,7 +324,6 @@ def _heldout(loads, ramps, seed: int) -> list[tuple[int, int]]:
     one backward) the diagonal alone held out a backward run on 16 of seeds 11-31, the 1 kg one
     on 13 of them; friction_asymmetry 18 was fitted without the one run that showed it.
     """
-
     n_loads, n_ramps = len(loads), len(ramps)
     n = n_loads * n_ramps
     if n < 2:

@@ -21,7 +21,7 @@ import math
 
 import numpy as np
 
-from ..heldout import least_hiding, split_features
+from ..heldout import least_hiding, lost_pairs, split_features
 
 __all__ = ["choose_heldout", "hidden_conditions", "with_heldout", "exchange_pairs", "exchanged"]
 
@@ -74,12 +74,8 @@ def exchange_pairs(recs, missed) -> dict:
 
 def exchanged(recs, pairs) -> list:
     """Copies of ``recs`` with the roles of each pair swapped, fit recordings first."""
-    from dataclasses import replace
-
-    swap = set(pairs) | set(pairs.values())
-    out = [replace(r, role="heldout" if r.role == "fit" else "fit") if r.name in swap else r for r in recs]
-    out.sort(key=lambda r: r.role != "fit")
-    return out
+    held = {r.name for r in recs if r.role != "fit"}
+    return with_heldout(recs, (held - set(pairs)) | set(pairs.values()))
 
 
 def _features(rec):
@@ -140,16 +136,7 @@ def hidden_conditions(recs) -> list:
         wheel speed, 0 standing), ``travel`` ("forward", "backward", "standing") and
         ``recordings`` (names), in recording order.
     """
-    def pair(r):
-        f = _features(r)
-        return f.load_key, f.direction
-
-    fit = {pair(r) for r in recs if r.role == "fit"}
-    out = {}
-    for r in recs:
-        cell = pair(r)
-        if r.role != "fit" and cell not in fit:
-            out.setdefault(cell, []).append(r.name)
+    held = [i for i, r in enumerate(recs) if r.role != "fit"]
     travel = {1.0: "forward", -1.0: "backward", 0.0: "standing"}
-    return [{"load_kg": load, "direction": d, "travel": travel[d], "recordings": names}
-            for (load, d), names in out.items()]
+    return [{"load_kg": load, "direction": d, "travel": travel[d], "recordings": [recs[i].name for i in idx]}
+            for (load, d), idx in lost_pairs([_features(r) for r in recs], held).items()]
