@@ -37,12 +37,13 @@ def truth_primary(truth: dict, cid: str):
     return src.get(prim)
 
 
-def run_case(work: Path, effect: str, seed: int, diag_args) -> dict:
+def run_case(work: Path, effect: str, seed: int, diag_args, current: float | None = None) -> dict:
     case = work / f"{effect}-{seed}"
     data, out = case / "data", case / "diagnosis"
     if not (data / "truth.json").is_file():
+        more = [] if current is None else ["--current", repr(current)]
         subprocess.run([sys.executable, "-m", "szdyn.run", "synth", "--out", str(data), "--effect", effect,
-                        "--seed", str(seed), "--loads", "0.5,1", "--dt", "5e-5", "--quiet"], check=True)
+                        "--seed", str(seed), "--loads", "0.5,1", "--dt", "5e-5", "--quiet", *more], check=True)
     if not (out / "diagnosis.json").is_file():
         t = time.perf_counter()
         subprocess.run([sys.executable, "-m", "szdyn.run", "diagnose", str(data / "manifest.toml"),
@@ -167,6 +168,9 @@ def main(argv=None):
     ap.add_argument("--effects", default=",".join(EFFECTS))
     ap.add_argument("--diagnose-args", default="", help="extra diagnose options (default: none, the CLI defaults)")
     ap.add_argument("--score-only", action="store_true", help="only (re)score finished cases")
+    ap.add_argument("--current", type=float, metavar="KT", default=None,
+                    help="the recordings also log the motor current (synth --current KT, N m/A), and "
+                         "the manifest gives KT: the diagnosis compares the motor torque too")
     args = ap.parse_args(argv)
     seeds = [int(s) for s in args.seeds.split(",") if s]
     effect_cases = [(e, s) for s in seeds for e in args.effects.split(",") if e]
@@ -181,7 +185,7 @@ def main(argv=None):
         if args.score_only and not (args.work / f"{e}-{s}" / "diagnosis" / "diagnosis.json").is_file():
             continue
         print(f"[{k}/{len(cases)}] {e} seed {s}", file=sys.stderr, flush=True)
-        results.append(run_case(args.work, e, s, args.diagnose_args.split()))
+        results.append(run_case(args.work, e, s, args.diagnose_args.split(), args.current))
         write_json(args.json, results)
         write_md(results, args.out, args)
     return 0

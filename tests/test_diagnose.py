@@ -127,7 +127,7 @@ def test_traction_runs_are_integrated_to_convergence():
 
     ref = qb(p, method="rk4", dt=1e-5)
     effect = np.abs(ref - qb(p0, method="rk4", dt=1e-5)).max()
-    _, fit_run = _simulate((p0.to_dict(), drive, 0.0, T, {"mu_t": mu}))
+    _, fit_run, _ = _simulate((p0.to_dict(), drive, 0.0, T, {"mu_t": mu}, False))
     heun_err = np.abs(qb(p, method="heun", dt=1e-4) - ref).max()
     assert effect > 0.1                                    # rad: the effect is there to lose
     assert heun_err > 0.2 * effect                         # the test tells a converged run apart
@@ -151,7 +151,7 @@ def test_a_run_over_its_step_budget_fails_instead_of_stalling(monkeypatch):
     from szdyn.diagnose import engine
 
     p0 = default_parameters()
-    task = (p0.to_dict(), RampHold(a=3.14, t_ramp=0.3, t_hold=0.0), 0.0, 0.3, {"mu_t": 0.3})
+    task = (p0.to_dict(), RampHold(a=3.14, t_ramp=0.3, t_hold=0.0), 0.0, 0.3, {"mu_t": 0.3}, False)
     assert engine._simulate(task) is not None
     monkeypatch.setattr(engine, "DOPRI5_MAX_STEPS_PER_S", 100.0)
     assert engine._simulate(task) is None
@@ -182,7 +182,7 @@ def test_heun_halves_its_step_only_where_the_arm_damper_makes_the_full_step_dive
     drive, T = RampHold(a=3.14, t_ramp=0.5, t_hold=0.5), 1.0
     with pytest.raises(SimulationError):
         simulate(p, drive, T, method="heun", dt=engine.HEUN_DT, save_dt=engine.SIM_DT)
-    t, qb = engine._simulate((p0.to_dict(), drive, 0.0, T, {"b_c": 1.01 * b_lim}))
+    t, qb, _ = engine._simulate((p0.to_dict(), drive, 0.0, T, {"b_c": 1.01 * b_lim}, False))
     ref = simulate(p, drive, T, x0=p.initial_state(None), save_dt=engine.SIM_DT, **engine._DOPRI5).outputs["q_b"]
     t_feat = np.arange(0.1, 0.9, 0.05)
     diff = model_speed(t, qb, t_feat) - model_speed(t, ref - ref[0], t_feat)
@@ -810,10 +810,11 @@ SMALL = ["--candidates", "slider_viscous,load_lift,encoder_scale", "--shortlist"
          "--quiet"]
 
 
-def _synth_and_diagnose(tmp_path_factory, effect, amplitude):
+def _synth_and_diagnose(tmp_path_factory, effect, amplitude, **synth_kw):
     base = tmp_path_factory.mktemp(effect)
     data, out = base / "data", base / "out"
-    synthesize(data, effect, amplitude, seed=5, loads_kg=(0.5, 1.0), ramps=RAMPS, dt=5e-5, verbose=False)
+    synthesize(data, effect, amplitude, seed=5, loads_kg=(0.5, 1.0), ramps=RAMPS, dt=5e-5, verbose=False,
+               **synth_kw)
     # the diagnosis must not read the answer: hide it
     truth = json.loads((data / "truth.json").read_text())
     (data / "truth.json").rename(base / "truth.json")
@@ -1004,3 +1005,105 @@ def test_models_sharing_a_cache_run_each_point_once_whatever_the_roles(null):
     with FeatureModel(recs, workers=1) as own:            # default: a cache of its own
         own.speeds(point, [0])
         assert own.n_runs_ == 1
+
+
+# ----------------------------------------------------------------------------- motor current
+KT = 0.05   # N m/A, the torque constant the synthetic recordings log their current with
+
+
+@pytest.fixture(scope="module")
+def lift_current(tmp_path_factory):
+    """A concealed payload lift, with the motor current logged and its torque constant given."""
+    return _synth_and_diagnose(tmp_path_factory, "load_lift", 1.0, torque_constant=KT)
+
+
+def test_torque_sensor_noise_is_the_noise_of_the_smoothed_current():
+    """The even/odd estimate of the smoothed torque's sensor noise matches the actual scatter of
+    the smoothed current about the truth (white noise on a constant current)."""
+    from szdyn.diagnose.data import prepare_one
+    from szdyn.diagnose.noise import torque_sensor_noise
+    from szdyn.defaults import default_parameters
+    from szdyn.recordings import Recording
+
+    rng = np.random.default_rng(3)
+    t = 0.002 * np.arange(2500)
+    th = 3.0 * t
+    rec = Recording(name="r", t=t, theta_w=th, theta_b=th, current=0.8 + rng.normal(0.0, 0.02, t.size))
+    p = prepare_one(rec, default_parameters(), "fit", torque_constant=KT)
+    actual = float(np.std(p.tau - KT * 0.8))
+    assert p.tau.shape == p.t_feat.shape and p.torque_constant == KT
+    assert torque_sensor_noise(p) == pytest.approx(actual, rel=0.25)
+    # without a torque constant the current is not turned into a torque
+    assert prepare_one(rec, default_parameters(), "fit").tau is None
+
+
+def test_motor_torque_tells_the_force_scale_apart(lift_current):
+    """Every force coefficient and the lift a quarter larger (``bench/force_scale.py``'s
+    direction) slip almost alike (the band speed barely moves) but draw a quarter more motor
+    torque: the model's torque at the truth is near the measured one, at the scaled point far
+    from it; the residual carries the torque only when weighted."""
+    from szdyn.diagnose.data import prepare
+    from szdyn.diagnose.engine import FeatureModel, rms
+    from szdyn.manifest import read_manifest
+
+    truth, _, out = lift_current
+    recs = prepare(read_manifest(out.parent / "data" / "manifest.toml"))
+    assert all(r.tau is not None and r.torque_constant == KT for r in recs)
+    v = truth["truth_parameters"]["values"]
+    at_truth = {k: v[k] for k in ("k_c", "b_c", "k_imp", "b_imp", "mu_s", "mu_k", "tau_lift")}
+    scaled = {k: 1.25 * x for k, x in at_truth.items()}
+    which = [0, 1]
+    with FeatureModel(recs, workers=1) as m:
+        sp = m.speeds([(at_truth, {}), (scaled, {})], which)
+        tq = m.torques([(at_truth, {}), (scaled, {})], which)
+        err = [[rms(recs[i].y - a) for i, a in zip(which, row)] for row in sp]       # rad/s
+        terr = [[rms(recs[i].tau - a) for i, a in zip(which, row)] for row in tq]    # N m
+        assert min(terr[1]) > 5 * max(terr[0])
+        assert max(err[1]) < 2 * max(err[0])        # the speed alone hardly tells
+        n_speed = sum(recs[i].y.size for i in which)
+        assert m.residuals([(at_truth, {})], which).shape == (1, n_speed)
+        m.torque_weights = {0: 2.0}
+        r = m.residuals([(at_truth, {})], which)[0]
+        assert r.shape == (n_speed + recs[0].tau.size,)
+        assert np.allclose(r[recs[0].y.size:2 * recs[0].y.size], 2.0 * (recs[0].tau - tq[0][0]))
+
+
+def test_concealed_lift_with_current_is_sized_by_the_motor_torque(lift_current):
+    truth, d, out = lift_current
+    assert d["selected"] == ["load_lift"]
+    e = next(x for x in d["effects"] if x["selected"])
+    tau_true = truth["effect_parameters"]["tau_lift"]
+    err = abs(e["primary"]["value"] / tau_true - 1)
+    assert err < 0.15        # the goal; measured 2.1 % (4.5 % on the same recordings without current)
+    t = d["motor_torque"]
+    assert t["used"] and t["torque_constant"] == {r["name"]: KT for r in d["recordings"]}
+    assert t["weight"] == pytest.approx(d["noise_floor"] / t["floor"])
+    assert t["after"]["heldout_rmse"] < t["before"]["heldout_rmse"]
+    assert (out / "torque_fit.png").stat().st_size > 0
+    assert "**Motor torque**" in (out / "report.md").read_text()
+
+
+def test_current_is_compared_unless_switched_off_and_an_unused_one_is_said(lift_current, monkeypatch, capsys):
+    """The command hands the measured torque to the diagnosis; ``--no-current`` withholds it; a
+    current column without a torque constant is named on stderr, not silently dropped."""
+    from szdyn.diagnose import diagnosis
+
+    _, _, out = lift_current
+    data = out.parent / "data"
+    seen = []
+
+    def stop(self, recs):
+        seen.append([r.tau is not None for r in recs])
+        raise UserInputError("stopped before fitting")
+    monkeypatch.setattr(diagnosis.Diagnosis, "fit", stop)
+    man = str(data / "manifest.toml")
+    assert run_main(["diagnose", man, "--out", str(out.parent / "x")]) != 0
+    assert run_main(["diagnose", man, "--out", str(out.parent / "x"), "--no-current"]) != 0
+    assert seen == [[True] * 4, [False] * 4]
+    text = (data / "manifest.toml").read_text()
+    motor = text[text.index("[motor]"):text.index("[split]")]
+    (data / "nokt.toml").write_text(text.replace(motor, ""))
+    capsys.readouterr()
+    assert run_main(["diagnose", str(data / "nokt.toml"), "--out", str(out.parent / "x")]) != 0
+    assert seen[-1] == [False] * 4
+    assert "current column not used in" in capsys.readouterr().err

@@ -151,7 +151,26 @@ def test_manifest_fraction_split_is_deterministic(tmp_path):
     assert len(a.heldout) == 2 and a.heldout == b.heldout
 
 
+def test_manifest_torque_constant_from_motor_table_and_per_recording(tmp_path):
+    """``[motor] torque_constant`` applies to every recording unless one gives its own."""
+    for f in ("a.csv", "b.csv", "c.csv"):
+        _write(tmp_path, GOOD, f)
+    m = tmp_path / "m.toml"
+    m.write_text('[motor]\ntorque_constant = 0.05\n[[recording]]\nfile = "a.csv"\n'
+                 '[[recording]]\nfile = "b.csv"\ntorque_constant = 0.08\n')
+    assert [e.torque_constant for e in read_manifest(m).entries] == [0.05, 0.08]
+    m.write_text('[[recording]]\nfile = "a.csv"\n[[recording]]\nfile = "c.csv"\ntorque_constant = 2\n')
+    assert [e.torque_constant for e in read_manifest(m).entries] == [None, 2.0]
+
+
 MANIFEST_ERRORS = [
+    ('[motor]\ntorque_constant = 0\n[[recording]]\nfile = "ramp1.csv"\n',
+     "[motor]: 'torque_constant' must be a number > 0 (N m/A)"),
+    ('[motor]\ntorque_const = 0.1\n[[recording]]\nfile = "ramp1.csv"\n',
+     "unknown key 'torque_const' (did you mean 'torque_constant'?)"),
+    ('[[recording]]\nfile = "ramp1.csv"\ntorque_constant = "0.05"\n',
+     "[[recording]] 1 ('ramp1.csv'): 'torque_constant' must be a number > 0 (N m/A)"),
+    ('motor = 0.05\n[[recording]]\nfile = "ramp1.csv"\n', "'motor' must be a table ([motor])"),
     ('[[recording]]\nfile = "ramp1.csv"\nload_k = 1.0\n', "unknown key 'load_k' (did you mean 'load_kg'?)"),
     ('[[recording]]\nfile = "ramp1.csv"\nload_kg = "heavy"\n', "'load_kg' must be a number > 0"),
     ('[[recording]]\nfile = "ramp1.csv"\nn_circles = 1.5\n', "'n_circles' must be a positive integer"),

@@ -7,6 +7,9 @@ A manifest is a TOML file (read with :mod:`tomllib` only)::
     mu_k = 0.25
     n_rollers = 8
 
+    [motor]                 # optional: for recordings with a `current` column
+    torque_constant = 0.05  # torque at the wheel per ampere (N m/A): motor constant x gear ratio
+
     [split]                 # optional: recordings held out of calibration
     heldout = ["ramp3.csv"] # file names as written in [[recording]], or a fraction:
     # heldout = 0.25        #   round(0.25 * n) recordings, chosen with numpy seed `seed`
@@ -17,9 +20,12 @@ A manifest is a TOML file (read with :mod:`tomllib` only)::
     load_kg = 1.0           # -> model m_b (kg)
     n_circles = 100         # -> model N_c
     note = "first ramp, fresh band"
+    # torque_constant = 0.05  # overrides [motor] for this recording (N m/A)
 
 Known keys of a ``[[recording]]``: ``file`` (required), ``load_kg`` (number > 0, sets the
-model's ``m_b``), ``n_circles`` (positive integer), ``note`` (text). Unknown keys anywhere
+model's ``m_b``), ``n_circles`` (positive integer), ``note`` (text), ``torque_constant``
+(number > 0, N m/A; with the recording's ``current`` column it gives the measured motor torque,
+which the diagnosis compares with the model's). Unknown keys anywhere
 are errors with a did-you-mean suggestion; ``[model]`` names are checked against
 ``szdyn_generated.spiral_zipper.PARAM_NAMES`` and values must be real numbers (not booleans,
 not strings). Errors are :class:`ManifestError` (a :class:`~szdyn.errors.UserInputError`)
@@ -33,7 +39,7 @@ import difflib
 import math
 import numbers
 import tomllib
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -48,8 +54,10 @@ RECORDING_KEYS = {
     "load_kg": "load carried by the column (kg); sets the model's m_b",
     "n_circles": "number of small circles N_c of the model",
     "note": "free text",
+    "torque_constant": "torque at the wheel per ampere of the current column (N m/A); overrides [motor]",
 }
-TOP_KEYS = ("recording", "model", "split")
+TOP_KEYS = ("recording", "model", "split", "motor")
+MOTOR_KEYS = ("torque_constant",)
 SPLIT_KEYS = ("heldout", "seed")
 
 
@@ -66,6 +74,12 @@ def _is_real(v) -> bool:
     return isinstance(v, numbers.Real) and not isinstance(v, bool) and math.isfinite(float(v))
 
 
+def _torque_constant(v, label: str) -> float:
+    if not _is_real(v) or v <= 0:
+        raise ManifestError(f"{label}: 'torque_constant' must be a number > 0 (N m/A), got {v!r}")
+    return float(v)
+
+
 @dataclass(frozen=True)
 class ManifestEntry:
     """One ``[[recording]]`` of a manifest.
@@ -78,11 +92,15 @@ class ManifestEntry:
         The file as written in the manifest (used by ``[split] heldout``).
     conditions : dict
         ``load_kg`` (float), ``n_circles`` (int), ``note`` (str), only those given.
+    torque_constant : float or None
+        Torque at the wheel per ampere of the recording's ``current`` column (N m/A): its own
+        ``torque_constant``, else ``[motor] torque_constant``, else None (current not used).
     """
 
     file: Path
     name: str
     conditions: dict
+    torque_constant: float | None = None
 
     def model_changes(self) -> dict:
         """Parameter changes implied by the conditions, for ``ParameterSet.replace``.
@@ -242,10 +260,26 @@ def read_manifest(path, *, check_files: bool = True) -> Manifest:
             if not isinstance(r["note"], str):
                 raise ManifestError(f"{label}: 'note' must be a string, got {r['note']!r}")
             cond["note"] = r["note"]
+        kt = None
+        if "torque_constant" in r:
+            kt = _torque_constant(r["torque_constant"], label)
         full = (base_dir / f).resolve()
         if check_files and not full.is_file():
             raise ManifestError(f"{label}: recording file not found: {full}")
-        entries.append(ManifestEntry(file=full, name=f, conditions=cond))
+        entries.append(ManifestEntry(file=full, name=f, conditions=cond, torque_constant=kt))
+
+    if "motor" in data:
+        tbl = data["motor"]
+        if not isinstance(tbl, dict):
+            raise ManifestError(f"{nm}: 'motor' must be a table ([motor])")
+        for key in tbl:
+            if key not in MOTOR_KEYS:
+                raise ManifestError(f"{nm}, [motor]: unknown key '{key}'{_suggest(key, MOTOR_KEYS)}; "
+                                    f"known: {', '.join(MOTOR_KEYS)}")
+        if "torque_constant" in tbl:
+            kt = _torque_constant(tbl["torque_constant"], f"{nm}, [motor]")
+            entries = [e if e.torque_constant is not None else replace(e, torque_constant=kt)
+                       for e in entries]
 
     model = {}
     if "model" in data:

@@ -75,7 +75,7 @@ from szdyn.errors import UserInputError
 
 __all__ = [
     "REQUIRED_COLUMNS", "OPTIONAL_COLUMNS", "COLUMN_UNITS", "RecordingError", "Recording",
-    "read_recording", "resample_uniform", "speeds", "relative_speed", "slip_per_revolution",
+    "read_recording", "resample_uniform", "speeds", "smoothed_current", "relative_speed", "slip_per_revolution",
     "slip_vs_speed", "stroke", "features", "compare_features", "speed_noise_std",
 ]
 
@@ -412,6 +412,39 @@ def speeds(rec: Recording, window_s: float = 0.05, *, order: int = 2, dt: float 
     ww = savgol_filter(cols["theta_w"], n, order, deriv=1, delta=h, mode="interp")
     wb = savgol_filter(cols["theta_b"], n, order, deriv=1, delta=h, mode="interp")
     return t, ww, wb
+
+
+def smoothed_current(rec: Recording, window_s: float = 0.05, *, order: int = 2, dt: float | None = None):
+    """The ``current`` column smoothed like the speeds of :func:`speeds` (same grid and window).
+
+    A local polynomial of degree ``order`` over ``window_s`` seconds (Savitzky-Golay, value, not
+    derivative), so that the measured motor torque and the model's are compared through the
+    same filter as the band speeds.
+
+    Parameters
+    ----------
+    rec : Recording
+        Must have a ``current`` column.
+    window_s, order, dt
+        As in :func:`speeds`.
+
+    Returns
+    -------
+    t : ndarray, shape (m,)
+        Uniform grid (s).
+    current : ndarray, shape (m,)
+        Smoothed current (A).
+    """
+    from scipy.signal import savgol_filter
+
+    if rec.current is None:
+        raise UserInputError(f"recording '{rec.name}' has no 'current' column")
+    t, cols, _ = resample_uniform(rec, dt)
+    n = _savgol_window(window_s, float(t[1] - t[0]), order)
+    if n > t.shape[0]:
+        raise UserInputError(f"recording '{rec.name}' is too short ({rec.duration:g} s) for a "
+                             f"smoothing window of {window_s:g} s")
+    return t, savgol_filter(cols["current"], n, order, mode="interp")
 
 
 def speed_noise_std(angle_noise_std: float, dt: float, window_s: float) -> float:

@@ -43,7 +43,7 @@ from szdyn.errors import UserInputError
 from szdyn.io import atomic_write_text
 from szdyn.recordings import Recording
 
-__all__ = ["SensorModel", "SensorError", "PROVENANCE", "EFFECTS", "apply_sensor", "record_run",
+__all__ = ["SensorModel", "SensorError", "PROVENANCE", "EFFECTS", "apply_sensor", "motor_torque", "record_run",
            "truth_recording", "write_recording"]
 
 #: diagnosis effect name -> SensorModel field it sets
@@ -274,7 +274,12 @@ def apply_sensor(t, q_w, q_b, sensor: SensorModel | None = None, rng=None, *, om
                            "n_nominal": n, "n_dropped": int(n - keep.sum())})
 
 
-def _motor_torque(run) -> np.ndarray:
+def motor_torque(run) -> np.ndarray:
+    """Torque the motor applies to the wheel (N m) at the run's output instants, shape (n,).
+
+    Speed drive: ``I_W * d(omega_w)/dt - wheel_reaction_torque`` (the torque that makes the
+    wheel follow its profile against the contacts); torque drive: the drive torque.
+    """
     o = run.outputs
     if run.drive.mode == "torque":
         return np.asarray(run.drive.evaluate(o["t"])[1], float)
@@ -307,7 +312,7 @@ def record_run(run, sensor: SensorModel | None = None, rng=None, *, name: str = 
         def ref(tt):
             return run.drive.evaluate(tt)[1]
     return apply_sensor(o["t"], o["q_w"], o["q_b"], sensor, rng, omega_ref=ref,
-                        motor_torque=_motor_torque(run), name=name, conditions=conditions)
+                        motor_torque=motor_torque(run), name=name, conditions=conditions)
 
 
 def truth_recording(run, *, name: str = "truth", conditions: dict | None = None) -> Recording:

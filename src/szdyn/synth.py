@@ -36,7 +36,8 @@ Outputs in ``out_dir``: one CSV per (load, ramp) (format of :mod:`szdyn.recordin
 ``manifest.toml`` (``[[recording]]`` with ``load_kg`` and ``n_circles``; ``[split] heldout``
 naming about a third of the recordings: one per load on a seeded "diagonal" of the load x
 ramp grid, unless that leaves a load and travel direction without a fit recording or a held-out
-one outside the fitted loads and speeds and another choice does not) and ``truth.json``.
+one outside the fitted loads and speeds and another choice does not; ``[motor]
+torque_constant`` when the current is logged) and ``truth.json``.
 
 ``truth.json`` is the hidden answer (effect id, amplitude, its parameter or sensor changes,
 the perturbed coefficients and factors, seed, integrator, sensor settings, ramps). **It is for
@@ -511,6 +512,8 @@ def synthesize(out_dir, effect: str = "none", amplitude=None, seed: int = 0,
     lines = ["# Synthetic Spiral Zipper recordings (python -m szdyn.run synth).",
              "# truth.json beside this file is the hidden answer for scoring only;",
              "# a diagnosis must not read it.", ""]
+    if sensor.torque_constant is not None:
+        lines += ["[motor]", f"torque_constant = {sensor.torque_constant!r}  # N m/A, as logged", ""]
     heldnames = [r["file"] for r in recs if r["heldout"]]
     if heldnames:
         lines += ["[split]", "heldout = [" + ", ".join(json.dumps(h) for h in heldnames) + "]", ""]

@@ -4,6 +4,7 @@ from __future__ import annotations
 import argparse
 import sys
 import time
+from dataclasses import replace
 from pathlib import Path
 
 from ..errors import UserInputError
@@ -41,6 +42,9 @@ def _build_parser():
     ap.add_argument("--no-exchange-split", action="store_true",
                     help="when the fit recordings show nothing but a held-out one is missed by more than "
                     "5 noise floors, do not run again with it fitted and a similar fit recording held out")
+    ap.add_argument("--no-current", action="store_true",
+                    help="compare the band speed only, even where recordings have a current column and the "
+                    "manifest its torque constant (by default their motor torque is compared too)")
     ap.add_argument("--weighting", choices=("fallback", "always", "off"), default="fallback",
                     help="weight each recording's residual by the common noise floor over its own, so that "
                     "recordings whose impact bumps do not reproduce count less: 'fallback' (default) only in "
@@ -102,6 +106,16 @@ def diagnose_command(argv) -> int:
 
     man = read_manifest(args.manifest)
     recs = prepare(man)
+    if args.no_current:
+        recs = [replace(r, tau=None, torque_constant=None) for r in recs]
+    unused = [r.name for r in recs if r.rec.current is not None and r.tau is None]
+    if unused and not args.no_current:
+        log(f"current column not used in {', '.join(unused)}: no torque constant in the manifest "
+            "([motor] torque_constant = N m/A, or per [[recording]])")
+    lacking = [e.name for e in man.entries if e.torque_constant is not None
+               and not any(r.name == e.name and r.rec.current is not None for r in recs)]
+    if lacking:
+        log(f"torque constant given but no current column in {', '.join(lacking)}")
     if not man.heldout:
         held = choose_heldout(recs)
         recs = with_heldout(recs, held)

@@ -9,6 +9,12 @@ degree 2, window ``window_s`` = 0.1 s, which averages the impact bumps and keeps
 model is driven by it), so this is the smoothed relative speed ``omega_w - omega_b`` up to the
 common term ``omega_w``. Slip per revolution and stroke are reported before and after
 (:func:`szdyn.compare.compare`), not fitted: they integrate the same signal.
+
+When a recording has a ``current`` column and the manifest gives its torque constant, the
+**smoothed motor torque** ``K_t * current`` (same filter, value instead of derivative) is
+compared too, with the model's ``I_W * d(omega_w)/dt - wheel_reaction_torque``. The band speed
+alone fixes the slider's forces only relative to each other (a friction and a load torque
+both a third too large slip alike); the torque fixes their size.
 """
 from __future__ import annotations
 
@@ -19,7 +25,7 @@ import numpy as np
 
 from ..drive import Sampled
 from ..params import ParameterSet
-from ..recordings import Recording, speeds
+from ..recordings import Recording, smoothed_current, speeds
 
 __all__ = ["Prepared", "prepare", "WINDOW_S", "FEATURE_DT", "SIM_DT"]
 
@@ -54,6 +60,11 @@ class Prepared:
     theta_b : ndarray, shape (m,)
         Measured band angle at ``t_feat`` (rad).
     rec : Recording
+    tau : ndarray, shape (m,), or None
+        Measured smoothed motor torque at ``t_feat`` (N m): ``torque_constant`` times the
+        smoothed ``current``; None without a current column or a torque constant.
+    torque_constant : float or None
+        N m/A, from the manifest.
     """
 
     name: str
@@ -68,6 +79,8 @@ class Prepared:
     theta_b: np.ndarray
     rec: Recording
     conditions: dict = field(default_factory=dict)
+    tau: np.ndarray | None = None
+    torque_constant: float | None = None
 
     @property
     def load_kg(self) -> float:
@@ -82,16 +95,22 @@ def feature_grid(t0: float, t1: float, window_s: float = WINDOW_S, dt: float = F
 
 
 def prepare_one(rec: Recording, params: ParameterSet, role: str, *, window_s: float = WINDOW_S,
-                feature_dt: float = FEATURE_DT) -> Prepared:
-    """Prepare one recording (see :class:`Prepared`)."""
+                feature_dt: float = FEATURE_DT, torque_constant: float | None = None) -> Prepared:
+    """Prepare one recording (see :class:`Prepared`); ``torque_constant`` (N m/A) turns its
+    ``current`` column, if any, into the measured motor torque ``tau``."""
     t, ww, wb = speeds(rec, window_s)
     drive = Sampled(t=t, omega=ww)
     t0, t1 = float(t[0]), float(t[-1])
     tf = feature_grid(t0, t1, window_s, feature_dt)
+    tau = None
+    if torque_constant is not None and rec.current is not None:
+        tc, cur = smoothed_current(rec, window_s)
+        tau = torque_constant * np.interp(tf, tc, cur)
     return Prepared(name=rec.name, role=role, params=params, drive=drive, t0=t0, t1=t1,
                     t_feat=tf, y=np.interp(tf, t, wb), omega_w=np.interp(tf, t, ww),
                     theta_b=np.interp(tf, rec.t, rec.theta_b - rec.theta_b[0]), rec=rec,
-                    conditions=dict(rec.conditions))
+                    conditions=dict(rec.conditions), tau=tau,
+                    torque_constant=None if tau is None else float(torque_constant))
 
 
 def prepare(manifest, *, window_s: float = WINDOW_S, feature_dt: float = FEATURE_DT,
@@ -113,6 +132,7 @@ def prepare(manifest, *, window_s: float = WINDOW_S, feature_dt: float = FEATURE
     for e in manifest.entries:
         rec = e.read()
         out.append(prepare_one(rec, manifest.parameters(e, base), "heldout" if e.name in held else "fit",
-                               window_s=window_s, feature_dt=feature_dt))
+                               window_s=window_s, feature_dt=feature_dt,
+                               torque_constant=e.torque_constant))
     out.sort(key=lambda p: p.role != "fit")
     return out

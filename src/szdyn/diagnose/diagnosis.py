@@ -46,7 +46,7 @@ from .detect import detectable_amplitude
 from .engine import FeatureModel, rms
 from .fit import Hypothesis, fit_hypothesis, jacobian, linear_step
 from .locate import follows, locate
-from .noise import bump_noise, sensor_noise
+from .noise import bump_noise, sensor_noise, torque_bump_noise, torque_sensor_noise
 from .selection import SelectionRule, decide, nominate, rivals, screen
 from .split import exchange_pairs, exchanged, hidden_conditions
 
@@ -253,6 +253,16 @@ class Diagnosis:
     hidden_conditions_ : list of dict
         (load, travel direction) conditions that only held-out recordings of the answer's split
         have (:func:`.split.hidden_conditions`): the fit could not see what shows only there.
+    torque_ : dict or None
+        The motor torque (recordings with a current column and a torque constant; None when no
+        recording has one): ``used`` (a fit recording has one), ``recordings``,
+        ``torque_constant`` (N m/A per recording) and, when used, ``floor`` (N m),
+        ``floor_parts``, ``floor_per_recording``, ``weight`` (rad/s per N m: the speed floor
+        over the torque floor; every fit score then counts the torque residual times it), and
+        ``before``/``after``: the torque's own RMSE (N m), held-out and per recording.
+    base_torque_, final_torque_ : dict of int -> ndarray or None
+        Model motor torque (N m) at each recording's ``t_feat``, calibrated base and updated
+        model (empty when the torque is not used).
     timings_ : dict
         Wall-clock seconds per step.
     """
@@ -563,6 +573,38 @@ class Diagnosis:
             self._count_pass("first_split", first)
         return recs
 
+    def _torque_floor(self, model, recs, fit_idx, all_idx, base_mc):
+        """Noise floor of the smoothed motor torque, and its residual weight on ``model``.
+
+        The floor (N m) is made like the speed floor (RMS of the fit recordings' sensor parts,
+        median of their bump parts, in quadrature); every recording with a measured torque gets
+        the weight ``floor_ / torque floor`` (rad/s per N m). Used only when a fit recording has
+        a measured torque. Returns None when no recording has one.
+        """
+        tq_idx = [i for i in all_idx if recs[i].tau is not None]
+        if not tq_idx:
+            return None
+        fit_tq = [i for i in tq_idx if i in fit_idx]
+        out = {"used": bool(fit_tq), "recordings": [recs[i].name for i in tq_idx],
+               "torque_constant": {recs[i].name: recs[i].torque_constant for i in tq_idx}}
+        if not fit_tq:
+            self.log("motor torque only on held-out recordings: not used")
+            return out
+        sens = {i: torque_sensor_noise(recs[i]) for i in tq_idx}
+        bump = {i: torque_bump_noise(model, i, base_mc) for i in tq_idx}
+        s_sens = math.sqrt(np.mean([sens[i] ** 2 for i in fit_tq]))
+        s_bump = float(np.median([bump[i] for i in fit_tq]))
+        # (never 0: a noise-free synthetic torque would divide by it)
+        floor = max(math.hypot(s_sens, s_bump), 1e-12)
+        w = self.floor_ / floor
+        model.torque_weights = {i: w for i in tq_idx}
+        out.update(floor=floor, floor_parts={"sensor": s_sens, "bump": s_bump},
+                   floor_per_recording={recs[i].name: {"sensor": sens[i], "bump": bump[i]} for i in tq_idx},
+                   weight=w)
+        self.log(f"motor torque on {len(tq_idx)} recording(s): floor {floor:.3g} N m (sensor {s_sens:.3g}, "
+                 f"bumps {s_bump:.3g}); weight {w:.3g} rad/s per N m")
+        return out
+
     def _fit_pass(self, recs, weighted: bool = False) -> None:
         """One diagnosis with the roles of ``recs`` as they are (see :meth:`fit`); ``weighted``:
         each recording's residual weighted by the common floor over its own."""
@@ -572,6 +614,7 @@ class Diagnosis:
             raise ValueError("no fit recordings")
         all_idx = fit_idx + held_idx
         self.timings_ = {}
+        self.base_torque_, self.final_torque_ = {}, {}
         clock = time.perf_counter()
 
         def lap(name):
@@ -629,6 +672,16 @@ class Diagnosis:
                 self.log(f"recalibrated (weighted): fit RMSE {cal.rmse_fit:.4g} rad/s")
                 lap("calibrate_weighted")
             self.weights_ = {recs[i].name: model.weights.get(i, 1.0) for i in all_idx}
+            # 2b. motor torque: recordings with a current column and a torque constant add
+            # their smoothed torque residual, weighted so that a correct model's reaches the
+            # speed floor too, and the base model is calibrated again with it
+            self.torque_ = self._torque_floor(model, recs, fit_idx, all_idx, base_mc)
+            if self.torque_ is not None and self.torque_["used"]:
+                cal = fit_hypothesis(model, base_h, fit_idx, x0=cal.x, max_jac=2 * self.max_jac, tol=FIT_TOL)
+                self.calibrated_ = cal
+                self.log(f"recalibrated with the motor torque: fit RMSE {cal.rmse_fit:.4g} rad/s "
+                         f"(speed and weighted torque)")
+                lap("calibrate_torque")
             self.mismatch_ = self.rule.mismatch(cal.rmse_fit, self.floor_)
             self.log(f"calibrated base is {cal.rmse_fit / self.floor_:.2f}x the floor")
             polish = 2 * self.max_jac if self.polish_jac is None else self.polish_jac
@@ -890,6 +943,16 @@ class Diagnosis:
             self.heldout_beyond_floor_ = {k: v / self.floor_ for k, v in after.items()
                                           if self.rule.mismatch(v, self.floor_)}
             self.final_speed_ = dict(zip(all_idx, model.speeds([fh.point(self.final_.x)], all_idx)[0]))
+            if self.torque_ is not None and self.torque_["used"]:
+                # the torque on its own, in N m, before (calibrated base) and after
+                pts = {"before": base_h.point(cal.x), "after": fh.point(self.final_.x)}
+                tq = {k: dict(zip(all_idx, model.torques([pt], all_idx)[0])) for k, pt in pts.items()}
+                self.base_torque_, self.final_torque_ = tq["before"], tq["after"]
+                for k in pts:
+                    per = {recs[i].name: rms(recs[i].tau - tq[k][i]) for i in all_idx if tq[k][i] is not None}
+                    held = [recs[i].tau - tq[k][i] for i in held_idx if tq[k][i] is not None]
+                    self.torque_[k] = {"heldout_rmse": rms(np.concatenate(held)) if held else math.nan,
+                                       "per_recording": per}
             lap("decide")
             self.n_runs_ = model.n_runs_
             self.n_failed_ = model.n_failed_

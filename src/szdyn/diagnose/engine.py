@@ -18,6 +18,12 @@ roller-contact friction (``mu_t > 0``, wheel_band_traction) go to dopri5 directl
 quietly loses most of the effect (measured, mu_t 0.28, v_teps 1 mm/s: band angle after 2 s
 3.059 rad, 3.057 rad without traction, 2.850 rad converged). The synthetic recordings are
 integrated with RK4 (at 10 us when mu_t > 0), so the fit never uses the truth's integrator.
+
+Recordings with a measured motor torque (``Prepared.tau``) also return the model's motor torque
+from their runs (:func:`szdyn.sensors.motor_torque`, on the same ``SIM_DT`` grid: sampling the
+impact-bumpy contact torque at 1 ms instead of 0.1 ms changed its smoothed value by 0.4-2.5e-5
+N m, against bump floors of 1-3e-3 N m, measured on load_lift seed 19); its residual joins a
+recording's band-speed residual when ``torque_weights`` holds the recording.
 """
 from __future__ import annotations
 
@@ -31,7 +37,8 @@ from scipy.signal import savgol_filter
 from ..errors import SimulationError
 from .data import SIM_DT, WINDOW_S, Prepared
 
-__all__ = ["FeatureModel", "apply_sensor_transform", "arm_damper_rate", "integrators", "model_speed"]
+__all__ = ["FeatureModel", "apply_sensor_transform", "arm_damper_rate", "integrators", "model_speed",
+           "model_torque"]
 
 HEUN_DT = 1e-4
 _HEUN = {"method": "heun", "dt": HEUN_DT}
@@ -92,9 +99,15 @@ def _key(changes: dict) -> tuple:
 
 
 def _simulate(task):
-    """Worker: one model run -> band angle (rad) on the ``SIM_DT`` grid, or None if it failed."""
-    params, drive, t0, t1, changes = task
+    """Worker: one model run -> ``(t, theta_b, tau)`` on the ``SIM_DT`` grid, or None if it failed.
+
+    ``theta_b``: band angle from rest (rad); ``tau``: the motor torque (N m,
+    :func:`szdyn.sensors.motor_torque`) if the task asks for it, else None (the per-sample
+    contact outputs cost ~7 % of a run).
+    """
+    params, drive, t0, t1, changes, want_torque = task
     from ..params import ParameterSet
+    from ..sensors import motor_torque
     from ..simulate import simulate
 
     changes = dict(changes)
@@ -109,9 +122,12 @@ def _simulate(task):
             run = simulate(p, drive, t1, t0=t0, x0=x0, save_dt=SIM_DT, **kw)
         except SimulationError:
             continue
-        qb = run.trajectory.x[:, 1]   # the band angle (rad); the other outputs are not needed
+        qb = run.trajectory.x[:, 1]   # the band angle (rad)
         if np.all(np.isfinite(qb)) and np.abs(np.diff(qb)).max(initial=0.0) < 1.0:
-            return run.trajectory.t, qb - qb[0]
+            tau = motor_torque(run) if want_torque else None
+            if tau is not None and not np.all(np.isfinite(tau)):
+                continue
+            return run.trajectory.t, qb - qb[0], tau
     return None
 
 
@@ -147,6 +163,15 @@ def model_speed(t, theta_b, t_feat, window_s: float = WINDOW_S):
     n += (n + 1) % 2
     w = savgol_filter(theta_b, n, 2, deriv=1, delta=h, mode="interp")
     return np.interp(t_feat, t, w)
+
+
+def model_torque(t, tau, t_feat, window_s: float = WINDOW_S):
+    """Smoothed motor torque of a model run at the feature instants (same filter as the
+    measured current, :func:`szdyn.recordings.smoothed_current`), N m."""
+    h = float(t[1] - t[0])
+    n = int(round(window_s / h))
+    n += (n + 1) % 2
+    return np.interp(t_feat, t, savgol_filter(tau, n, 2, mode="interp"))
 
 
 class FeatureModel:
@@ -185,6 +210,9 @@ class FeatureModel:
         self.n_failed_ = 0
         #: residual weight per recording index (default 1; see ``Diagnosis(weighting=...)``)
         self.weights = {}
+        #: weight (s^-1 rad / (N m)) of the motor-torque residual per recording index; a
+        #: recording not in it (default: all) contributes its band speed only
+        self.torque_weights = {}
 
     # -- pool ------------------------------------------------------------------------------
     def _executor(self):
@@ -215,7 +243,7 @@ class FeatureModel:
         tasks = []
         for name, ck in todo:
             r = self.recordings[self._index[name]]
-            tasks.append((r.params.to_dict(), r.drive, r.t0, r.t1, dict(ck)))
+            tasks.append((r.params.to_dict(), r.drive, r.t0, r.t1, dict(ck), r.tau is not None))
         pool = self._executor()
         if pool is None:
             results = map(_simulate, tasks)
@@ -258,23 +286,55 @@ class FeatureModel:
                 if res is None:
                     row.append(np.zeros_like(r.y))
                     continue
-                t, qb = res
+                t, qb, _ = res
                 row.append(model_speed(t, apply_sensor_transform(t, qb, sc), r.t_feat))
             out.append(row)
         return out
 
+    def torques(self, points, which: Sequence[int]):
+        """Model motor torques (N m) at each recording's ``t_feat``, like :meth:`speeds`;
+        None for a recording without a measured torque (``Prepared.tau``).
+
+        The sensor changes of a point do not act on the torque (they are encoder errors).
+        """
+        keys = [(self.recordings[i].name, _key(mc)) for mc, _ in points for i in which]
+        self._run_all(keys)
+        out = []
+        for mc, _ in points:
+            row = []
+            for i in which:
+                r = self.recordings[i]
+                if r.tau is None:
+                    row.append(None)
+                    continue
+                res = self._cache[(r.name, _key(mc))]
+                row.append(np.zeros_like(r.tau) if res is None else model_torque(res[0], res[2], r.t_feat))
+            out.append(row)
+        return out
+
     def residuals(self, points, which: Sequence[int]):
-        """Measured minus model band speed (rad/s), concatenated over ``which``, per point,
-        each recording's block times its weight in ``weights`` (default 1).
+        """Residuals per point, concatenated over ``which``: per recording, measured minus model
+        band speed (rad/s) times its weight in ``weights`` (default 1), then, if the recording
+        is in ``torque_weights``, measured minus model motor torque (N m) times that weight.
 
         Returns
         -------
-        ndarray, shape (n_points, sum m_i)
+        ndarray, shape (n_points, sum of the blocks' lengths)
         """
         sp = self.speeds(points, which)
-        w = np.concatenate([np.full(self.recordings[i].y.size, self.weights.get(i, 1.0)) for i in which])
-        y = np.concatenate([self.recordings[i].y for i in which])
-        return np.array([w * (y - np.concatenate(row)) for row in sp])
+        tq_idx = [i for i in which if i in self.torque_weights and self.recordings[i].tau is not None]
+        tq = self.torques(points, tq_idx) if tq_idx else [[] for _ in points]
+        out = []
+        for row_s, row_t in zip(sp, tq):
+            blocks = []
+            tq_of = dict(zip(tq_idx, row_t))
+            for i, v in zip(which, row_s):
+                r = self.recordings[i]
+                blocks.append(self.weights.get(i, 1.0) * (r.y - v))
+                if i in tq_of:
+                    blocks.append(self.torque_weights[i] * (r.tau - tq_of[i]))
+            out.append(np.concatenate(blocks))
+        return np.array(out)
 
 
 def rms(x) -> float:

@@ -12,6 +12,9 @@ Two parts, both estimated without knowing the truth:
 
 ``floor = sqrt(sigma_sensor^2 + sigma_bump^2)`` (rad/s) is the RMSE a correct model would
 reach; the diagnosis calls a mismatch significant only above it.
+
+The smoothed motor torque (recordings with a current column) has a floor of its own, in N m,
+made the same two ways (:func:`torque_sensor_noise`, :func:`torque_bump_noise`).
 """
 from __future__ import annotations
 
@@ -19,10 +22,10 @@ import math
 
 import numpy as np
 
-from ..recordings import Recording, speeds
+from ..recordings import Recording, smoothed_current, speeds
 from .data import Prepared, WINDOW_S
 
-__all__ = ["sensor_noise", "bump_noise"]
+__all__ = ["sensor_noise", "bump_noise", "torque_sensor_noise", "torque_bump_noise"]
 
 
 def sensor_noise(p: Prepared, window_s: float = WINDOW_S) -> float:
@@ -46,4 +49,27 @@ def bump_noise(model, i: int, base_changes: dict) -> float:
     off = r.params.default_wheel_offset() + shift
     a = model.speeds([(base_changes, {})], [i])[0][0]
     b = model.speeds([({**base_changes, "q_w0": off}, {})], [i])[0][0]
+    return float(np.sqrt(np.mean((a - b) ** 2)) / math.sqrt(2.0))
+
+
+def torque_sensor_noise(p: Prepared, window_s: float = WINDOW_S) -> float:
+    """Sensor noise of the smoothed motor torque of one recording (N m), from its even and odd
+    rows as in :func:`sensor_noise`; the recording must have ``tau``."""
+    rec = p.rec
+    halves = []
+    for k in (0, 1):
+        sub = Recording(name=rec.name, t=rec.t[k::2], theta_w=rec.theta_w[k::2],
+                        theta_b=rec.theta_b[k::2], current=rec.current[k::2], conditions=rec.conditions)
+        t, cur = smoothed_current(sub, window_s)
+        halves.append(np.interp(p.t_feat, t, cur))
+    return float(p.torque_constant * np.std(halves[0] - halves[1]) / 2.0)
+
+
+def torque_bump_noise(model, i: int, base_changes: dict) -> float:
+    """Unreproducible part of the model's smoothed motor torque for recording ``i`` (N m): the
+    same two runs as :func:`bump_noise` (cached)."""
+    r = model.recordings[i]
+    shift = 0.5 * math.pi / r.params.n_circles
+    off = r.params.default_wheel_offset() + shift
+    a, b = (model.torques([(mc, {})], [i])[0][0] for mc in (base_changes, {**base_changes, "q_w0": off}))
     return float(np.sqrt(np.mean((a - b) ** 2)) / math.sqrt(2.0))

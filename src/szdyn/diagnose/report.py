@@ -7,7 +7,8 @@ Files in ``out`` (each written atomically):
   uncertainty, its expression, the fit before/after, units;
 * ``params.json`` — the updated model (:meth:`szdyn.params.ParameterSet.to_json`; load with
   ``python -m szdyn.run --params``);
-* ``residual_time.png``, ``residual_features.png``, ``candidates.png``, ``heldout_fit.png``.
+* ``residual_time.png``, ``residual_features.png``, ``candidates.png``, ``heldout_fit.png``;
+  ``torque_fit.png`` when the motor torque was compared (recordings with a current column).
 """
 from __future__ import annotations
 
@@ -38,6 +39,9 @@ UNITS = {"rmse": "rad/s", "heldout_rmse": "rad/s", "noise_floor": "rad/s", "t0":
          "per_mu_k (effect primary)": "the effect parameter's own unit (mu_k is 1)",
          "weights": "common noise floor / the recording's own (1); when weighted, every fit and "
                     "held-out RMSE is of the weighted residual (rad/s at the common floor)",
+         "motor_torque": "floor, heldout_rmse and per_recording in N m; torque_constant N m/A; weight "
+                         "rad/s per N m (the speed floor over the torque floor): when used, every fit and "
+                         "held-out RMSE counts the torque residual times it, in rad/s at the speed floor",
          "k_c": "N*m/rad", "b_c": "N*m*s/rad", "k_imp": "N/m^n", "b_imp": "N*s/m^(n+1)", "mu_s": "1", "mu_k": "1"}
 
 
@@ -232,6 +236,7 @@ def _to_json(d) -> dict:
         "noise_floor_per_recording": d.floor_per_recording_,
         "weights": d.weights_,
         "weighting": d.weighting_,
+        "motor_torque": d.torque_,
         "mismatch_significant": bool(d.mismatch_),
         "rule": d.rule.__dict__,
         "location": {"recordings": d.location_["recordings"], "follows": d.location_["follows"]},
@@ -294,6 +299,35 @@ def _split_md(d) -> list:
               "that recording is either less reproducible than the floor says or shows something this "
               "model does not have.", ""]
     return L
+
+
+def _torque_md(d) -> list:
+    """The motor-torque paragraph of "What was compared" (recordings with a current column)."""
+    t = d.torque_
+    if t is None:
+        return []
+    if not t["used"]:
+        return ["Motor current: only held-out recordings (" + ", ".join(f"`{k}`" for k in t["recordings"])
+                + ") have a current column and a torque constant, so the motor torque was not compared "
+                "(it must be among the fit recordings to take part in the fit).", ""]
+    kts = sorted(set(t["torque_constant"].values()))
+    b, a = t.get("before", {}), t.get("after", {})
+    return [f"**Motor torque** ({len(t['recordings'])} recordings with a `current` column; torque constant "
+            + ", ".join(f"{k:g}" for k in kts) + " N m/A from the manifest): the smoothed measured torque "
+            "`K_t * current` (same filter, value instead of derivative) against the model's "
+            "`I_W * d(omega_w)/dt - wheel_reaction_torque`, every "
+            f"{FEATURE_DT:g} s. Its floor {_f(t['floor'], '.3g')} N m = sqrt(sensor "
+            f"{_f(t['floor_parts']['sensor'], '.3g')}^2 + impact bumps {_f(t['floor_parts']['bump'], '.3g')}^2), "
+            f"made like the speed's. Its residual enters every fit times {_f(t['weight'], '.3g')} rad/s per "
+            "N m (the speed floor over the torque floor), so that a correct model is near the floor in "
+            "both; every fit and held-out RMSE below is of speed and weighted torque together (rad/s at "
+            "the speed floor). The speed fixes the slider's forces mostly relative to one another; "
+            "the torque fixes their size. Torque alone, held-out RMSE: "
+            f"{_f(b.get('heldout_rmse'), '.3g')} N m before, {_f(a.get('heldout_rmse'), '.3g')} N m after "
+            "(per recording, before/after: "
+            + "; ".join(f"`{k}` {_f(v, '.3g')}/{_f(a.get('per_recording', {}).get(k), '.3g')}"
+                        for k, v in b.get("per_recording", {}).items())
+            + " N m). Plot: `torque_fit.png`.", ""]
 
 
 def _report_md(d, js) -> str:
@@ -366,6 +400,7 @@ def _report_md(d, js) -> str:
               "reproducible recordings show (`--weighting always` weights each recording by its own "
               "floor; by default that is tried when nothing is named and they differ by more than "
               f"{d.weighting_['threshold']:g}x)."), "",
+          *_torque_md(d),
           "## Calibration (base model, fit recordings)", "",
           "| coefficient | value | std | unit |", "|---|---|---|---|"]
     for k in ("k_c", "b_c", "k_imp", "mu_s", "mu_k"):
@@ -433,7 +468,11 @@ def _report_md(d, js) -> str:
         L += ["", f"Model/sensor parameters set: `{e['parameters']}`; effect parameter "
               f"`{e['primary']['name']}` = {_f(e['primary']['value'])} (std {_f(e['primary']['std'])}; "
               "a local estimate like the coefficients', see the calibration section).", ""]
-        if "per_mu_k" in e["primary"]:
+        if "per_mu_k" in e["primary"] and d.torque_ is not None and d.torque_["used"]:
+            L += [f"`{e['primary']['name']}` / mu_k = {_f(e['primary']['per_mu_k'])}. The measured motor "
+                  "torque took part in the fit, so the size of the torques is measured, not only their "
+                  "ratio.", ""]
+        elif "per_mu_k" in e["primary"]:
             pn = e["primary"]["name"]
             L += [f"`{pn}` / mu_k = {_f(e['primary']['per_mu_k'])}. Speed recordings fix the size of every "
                   "torque mainly relative to the others: scaling every force coefficient and the effect "
@@ -516,6 +555,22 @@ def _plots(d, out: Path):
     axes[0, 0].legend(fontsize=7)
     fig.tight_layout()
     save_png(fig, out / "heldout_fit.png")
+
+    tq = [k for k, r in enumerate(recs) if d.base_torque_.get(k) is not None]
+    if tq:
+        fig, axes = plt.subplots(len(tq), 1, figsize=(7, 2.2 * len(tq)), squeeze=False, sharex=True)
+        for ax, k in zip(axes[:, 0], tq):
+            r = recs[k]
+            ax.plot(r.t_feat, r.tau, "k", lw=1.2, label="measured (K_t * current)")
+            ax.plot(r.t_feat, d.base_torque_[k], lw=1, label="before (calibrated base)")
+            if d.selected_:
+                ax.plot(r.t_feat, d.final_torque_[k], lw=1, ls="--", label=f"after (+ {d.selected_[0]})")
+            ax.set_title(f"{r.name} ({r.role})", fontsize=8)
+            ax.set_ylabel("motor torque (N m)")
+        axes[-1, 0].set_xlabel("t (s)")
+        axes[0, 0].legend(fontsize=7)
+        fig.tight_layout()
+        save_png(fig, out / "torque_fit.png")
 
 
 def write_report(d, out) -> dict:
