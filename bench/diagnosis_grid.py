@@ -44,6 +44,11 @@ def run_case(work: Path, effect: str, seed: int, diag_args, current: float | Non
         more = [] if current is None else ["--current", repr(current)]
         subprocess.run([sys.executable, "-m", "szdyn.run", "synth", "--out", str(data), "--effect", effect,
                         "--seed", str(seed), "--loads", "0.5,1", "--dt", "5e-5", "--quiet", *more], check=True)
+    if ("[motor]" in (data / "manifest.toml").read_text()) != (current is not None):
+        # a work directory holds recordings with or without the current, not both
+        raise SystemExit(f"{data}: recordings {'without' if current is not None else 'with'} a current "
+                         f"column, but --current is {'given' if current is not None else 'not given'}; "
+                         "use another --work")
     if not (out / "diagnosis.json").is_file():
         t = time.perf_counter()
         subprocess.run([sys.executable, "-m", "szdyn.run", "diagnose", str(data / "manifest.toml"),

@@ -1065,7 +1065,11 @@ def test_motor_torque_tells_the_force_scale_apart(lift_current):
         m.torque_weights = {0: 2.0}
         r = m.residuals([(at_truth, {})], which)[0]
         assert r.shape == (n_speed + recs[0].tau.size,)
-        assert np.allclose(r[recs[0].y.size:2 * recs[0].y.size], 2.0 * (recs[0].tau - tq[0][0]))
+        m0 = recs[0].y.size
+        # per recording: its speed block, then its torque block (if weighted)
+        assert np.allclose(r[:m0], recs[0].y - sp[0][0])
+        assert np.allclose(r[m0:2 * m0], 2.0 * (recs[0].tau - tq[0][0]))
+        assert np.allclose(r[2 * m0:], recs[1].y - sp[0][1])
 
 
 def test_concealed_lift_with_current_is_sized_by_the_motor_torque(lift_current):
@@ -1075,6 +1079,7 @@ def test_concealed_lift_with_current_is_sized_by_the_motor_torque(lift_current):
     tau_true = truth["effect_parameters"]["tau_lift"]
     err = abs(e["primary"]["value"] / tau_true - 1)
     assert err < 0.15        # the goal; measured 2.1 % (4.5 % on the same recordings without current)
+    assert d["cost"]["seconds"]["calibrate_torque"] > 0     # the base was calibrated with the torque
     t = d["motor_torque"]
     assert t["used"] and t["torque_constant"] == {r["name"]: KT for r in d["recordings"]}
     assert t["weight"] == pytest.approx(d["noise_floor"] / t["floor"])
@@ -1107,3 +1112,42 @@ def test_current_is_compared_unless_switched_off_and_an_unused_one_is_said(lift_
     assert run_main(["diagnose", str(data / "nokt.toml"), "--out", str(out.parent / "x")]) != 0
     assert seen[-1] == [False] * 4
     assert "current column not used in" in capsys.readouterr().err
+
+
+def test_current_only_on_heldout_recordings_is_not_used_and_the_report_says_so():
+    """The torque must be among the fit recordings to take part: otherwise it is left out (no
+    weights), and the report says why."""
+    from types import SimpleNamespace
+
+    from szdyn.diagnose.report import _torque_md
+
+    recs = [SimpleNamespace(name=f"r{k}", tau=None if k < 2 else np.zeros(3), torque_constant=KT,
+                            role="fit" if k < 2 else "heldout") for k in range(3)]
+    model = SimpleNamespace(torque_weights={})
+    d = Diagnosis(log=lambda m: None)
+    t = d._torque_floor(model, recs, [0, 1], [0, 1, 2], {})
+    assert t == {"used": False, "recordings": ["r2"], "torque_constant": {"r2": KT}}
+    assert model.torque_weights == {}
+    assert "only held-out recordings" in _torque_md(SimpleNamespace(torque_=t))[0]
+    assert _torque_md(SimpleNamespace(torque_=None)) == []
+
+
+def test_a_shared_run_without_the_torque_is_run_again_for_a_recording_with_one(lift_current):
+    """Runs shared from a model whose recording had no measured torque do not answer one that
+    has: the run is repeated with the torque, not read as missing."""
+    from dataclasses import replace
+
+    from szdyn.diagnose.data import prepare
+    from szdyn.diagnose.engine import FeatureModel
+    from szdyn.manifest import read_manifest
+
+    _, _, out = lift_current
+    rec = prepare(read_manifest(out.parent / "data" / "manifest.toml"))[0]
+    shared, point = {}, [({"mu_k": 0.26}, {})]
+    with FeatureModel([replace(rec, tau=None)], workers=1, cache=shared) as first:
+        first.speeds(point, [0])
+    with FeatureModel([rec], workers=1, cache=shared) as second:
+        [[tq]] = second.torques(point, [0])
+        assert second.n_runs_ == 1 and tq is not None and np.all(np.isfinite(tq))
+        second.speeds(point, [0])
+        assert second.n_runs_ == 1

@@ -171,6 +171,8 @@ MANIFEST_ERRORS = [
     ('[[recording]]\nfile = "ramp1.csv"\ntorque_constant = "0.05"\n',
      "[[recording]] 1 ('ramp1.csv'): 'torque_constant' must be a number > 0 (N m/A)"),
     ('motor = 0.05\n[[recording]]\nfile = "ramp1.csv"\n', "'motor' must be a table ([motor])"),
+    ('[model]\ntorque_constant = 0.05\n[[recording]]\nfile = "ramp1.csv"\n',
+     "torque constant goes in [motor]"),
     ('[[recording]]\nfile = "ramp1.csv"\nload_k = 1.0\n', "unknown key 'load_k' (did you mean 'load_kg'?)"),
     ('[[recording]]\nfile = "ramp1.csv"\nload_kg = "heavy"\n', "'load_kg' must be a number > 0"),
     ('[[recording]]\nfile = "ramp1.csv"\nn_circles = 1.5\n', "'n_circles' must be a positive integer"),

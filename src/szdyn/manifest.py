@@ -292,7 +292,8 @@ def read_manifest(path, *, check_files: bool = True) -> Manifest:
             if key not in PARAM_NAMES:
                 hint = _suggest(key, PARAM_NAMES)
                 extra = (" (set load_kg or n_circles per [[recording]])"
-                         if key in ("load_kg", "n_circles") else "")
+                         if key in ("load_kg", "n_circles") else
+                         " (the motor's torque constant goes in [motor])" if key == "torque_constant" else "")
                 raise ManifestError(f"{nm}, [model]: unknown parameter '{key}'{hint}{extra}; "
                                     f"valid: {', '.join(PARAM_NAMES)}")
             if not _is_real(v):

@@ -401,6 +401,14 @@ def speeds(rec: Recording, window_s: float = 0.05, *, order: int = 2, dt: float 
     omega_w, omega_b : ndarray, shape (m,)
         Wheel and band angular speed (rad/s).
     """
+    t, (ww, wb) = _savgol_columns(rec, ("theta_w", "theta_b"), window_s, order, dt, 1, "speed")
+    return t, ww, wb
+
+
+def _savgol_columns(rec: Recording, names, window_s: float, order: int, dt, deriv: int, what: str):
+    """Columns ``names`` of ``rec`` on a uniform grid, Savitzky-Golay filtered (value or
+    derivative ``deriv``) over ``window_s``: the one filter of :func:`speeds` and
+    :func:`smoothed_current`. Returns the grid and the filtered columns."""
     from scipy.signal import savgol_filter
 
     t, cols, _ = resample_uniform(rec, dt)
@@ -408,10 +416,8 @@ def speeds(rec: Recording, window_s: float = 0.05, *, order: int = 2, dt: float 
     n = _savgol_window(window_s, h, order)
     if n > t.shape[0]:
         raise UserInputError(f"recording '{rec.name}' is too short ({rec.duration:g} s) for a "
-                             f"speed window of {window_s:g} s")
-    ww = savgol_filter(cols["theta_w"], n, order, deriv=1, delta=h, mode="interp")
-    wb = savgol_filter(cols["theta_b"], n, order, deriv=1, delta=h, mode="interp")
-    return t, ww, wb
+                             f"{what} window of {window_s:g} s")
+    return t, [savgol_filter(cols[k], n, order, deriv=deriv, delta=h, mode="interp") for k in names]
 
 
 def smoothed_current(rec: Recording, window_s: float = 0.05, *, order: int = 2, dt: float | None = None):
@@ -435,16 +441,10 @@ def smoothed_current(rec: Recording, window_s: float = 0.05, *, order: int = 2, 
     current : ndarray, shape (m,)
         Smoothed current (A).
     """
-    from scipy.signal import savgol_filter
-
     if rec.current is None:
         raise UserInputError(f"recording '{rec.name}' has no 'current' column")
-    t, cols, _ = resample_uniform(rec, dt)
-    n = _savgol_window(window_s, float(t[1] - t[0]), order)
-    if n > t.shape[0]:
-        raise UserInputError(f"recording '{rec.name}' is too short ({rec.duration:g} s) for a "
-                             f"smoothing window of {window_s:g} s")
-    return t, savgol_filter(cols["current"], n, order, mode="interp")
+    t, (cur,) = _savgol_columns(rec, ("current",), window_s, order, dt, 0, "current smoothing")
+    return t, cur
 
 
 def speed_noise_std(angle_noise_std: float, dt: float, window_s: float) -> float:

@@ -275,14 +275,24 @@ def apply_sensor(t, q_w, q_b, sensor: SensorModel | None = None, rng=None, *, om
 
 
 def motor_torque(run) -> np.ndarray:
-    """Torque the motor applies to the wheel (N m) at the run's output instants, shape (n,).
+    """Torque the motor applies (N m) at the run's output instants, shape (n,).
 
     Speed drive: ``I_W * d(omega_w)/dt - wheel_reaction_torque`` (the torque that makes the
-    wheel follow its profile against the contacts); torque drive: the drive torque.
+    wheel follow its profile against the contacts). Compliant drive (``drive_mode`` 2, a speed
+    profile prescribing the motor): the torque in the compliance,
+    ``k_drive (q_m - q_w) + c_drive (u_m - u_w)`` (the motor's own inertia is not modelled).
+    Torque drive: the drive torque.
     """
     o = run.outputs
     if run.drive.mode == "torque":
         return np.asarray(run.drive.evaluate(o["t"])[1], float)
+    if run.params["drive_mode"] == 2:
+        from szdyn.drive import array_to_knots, evaluate_knots
+
+        x = run.trajectory.x
+        u_w = x[:, run.params.n_circles + 2]
+        q_m, u_m, _ = evaluate_knots(*array_to_knots(run.drive_array), o["t"])
+        return run.params["k_drive"] * (q_m - x[:, 0]) + run.params["c_drive"] * (u_m - u_w)
     accel = np.asarray(run.drive.evaluate(o["t"])[2], float)
     return run.params["I_W"] * accel - o["wheel_reaction_torque"]
 

@@ -394,7 +394,7 @@ def synthesize(out_dir, effect: str = "none", amplitude=None, seed: int = 0,
         If the truth integration fails (try a smaller ``dt``).
     """
     from szdyn.defaults import default_parameters
-    from szdyn.sensors import SensorModel, apply_sensor, write_recording
+    from szdyn.sensors import SensorModel, apply_sensor, motor_torque, write_recording
     from szdyn.simulate import simulate
 
     check_effect(effect)
@@ -484,14 +484,9 @@ def synthesize(out_dir, effect: str = "none", amplitude=None, seed: int = 0,
                 raise SimulationError(f"truth of {fname} is unphysical: band speed reaches "
                                       f"{np.abs(o['u_b']).max():.3g} rad/s (try a smaller dt)",
                                       t=None, variable="u_b")
-            if compliant:   # motor-side encoder: the prescribed motor angle
-                q_m, u_m, _ = drive.evaluate(o["t"], angle0=float(x[0, 0]))
-                q_enc = q_m
-                torque = run.params["k_drive"] * (q_m - x[:, 0]) + run.params["c_drive"] * (u_m - x[:, n])
-            else:
-                q_enc = o["q_w"]
-                acc = drive.evaluate(o["t"])[2]
-                torque = run.params["I_W"] * acc - o["wheel_reaction_torque"]
+            # motor-side encoder: with the compliant drive, the prescribed motor angle
+            q_enc = drive.evaluate(o["t"], angle0=float(x[0, 0]))[0] if compliant else o["q_w"]
+            torque = motor_torque(run)
             cond = {"load_kg": load, "n_circles": n_circles}
             rec = apply_sensor(o["t"], q_enc, o["q_b"], sensor, np.random.default_rng([seed, _S_SENSOR + k]),
                                omega_ref=lambda tt, d=drive: d.evaluate(tt)[1], motor_torque=torque,
@@ -513,7 +508,7 @@ def synthesize(out_dir, effect: str = "none", amplitude=None, seed: int = 0,
              "# truth.json beside this file is the hidden answer for scoring only;",
              "# a diagnosis must not read it.", ""]
     if sensor.torque_constant is not None:
-        lines += ["[motor]", f"torque_constant = {sensor.torque_constant!r}  # N m/A, as logged", ""]
+        lines += ["[motor]", f"torque_constant = {float(sensor.torque_constant)!r}  # N m/A, as logged", ""]
     heldnames = [r["file"] for r in recs if r["heldout"]]
     if heldnames:
         lines += ["[split]", "heldout = [" + ", ".join(json.dumps(h) for h in heldnames) + "]", ""]

@@ -108,14 +108,16 @@ def diagnose_command(argv) -> int:
     recs = prepare(man)
     if args.no_current:
         recs = [replace(r, tau=None, torque_constant=None) for r in recs]
+    # said even with --quiet: part of the input is not used
     unused = [r.name for r in recs if r.rec.current is not None and r.tau is None]
     if unused and not args.no_current:
-        log(f"current column not used in {', '.join(unused)}: no torque constant in the manifest "
-            "([motor] torque_constant = N m/A, or per [[recording]])")
+        print(f"diagnose: current column not used in {', '.join(unused)}: no torque constant in the "
+              "manifest ([motor] torque_constant = N m/A, or per [[recording]])", file=sys.stderr)
     lacking = [e.name for e in man.entries if e.torque_constant is not None
                and not any(r.name == e.name and r.rec.current is not None for r in recs)]
     if lacking:
-        log(f"torque constant given but no current column in {', '.join(lacking)}")
+        print(f"diagnose: torque constant given but no current column in {', '.join(lacking)}",
+              file=sys.stderr)
     if not man.heldout:
         held = choose_heldout(recs)
         recs = with_heldout(recs, held)

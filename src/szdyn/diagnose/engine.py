@@ -156,26 +156,29 @@ def apply_sensor_transform(t, theta_b, sensor: dict):
     return scale * out if scale != 1.0 else out
 
 
-def model_speed(t, theta_b, t_feat, window_s: float = WINDOW_S):
-    """Smoothed band speed of a model run at the feature instants (same filter as the data)."""
+def _smoothed_at(t, y, t_feat, window_s: float, deriv: int):
+    """Savitzky-Golay (degree 2, ``window_s``, value or first derivative) of a model output on
+    its uniform grid ``t``, at the feature instants: the filter the recordings go through."""
     h = float(t[1] - t[0])
     n = int(round(window_s / h))
     n += (n + 1) % 2
-    w = savgol_filter(theta_b, n, 2, deriv=1, delta=h, mode="interp")
-    return np.interp(t_feat, t, w)
+    return np.interp(t_feat, t, savgol_filter(y, n, 2, deriv=deriv, delta=h, mode="interp"))
+
+
+def model_speed(t, theta_b, t_feat, window_s: float = WINDOW_S):
+    """Smoothed band speed of a model run at the feature instants (same filter as the data)."""
+    return _smoothed_at(t, theta_b, t_feat, window_s, 1)
 
 
 def model_torque(t, tau, t_feat, window_s: float = WINDOW_S):
     """Smoothed motor torque of a model run at the feature instants (same filter as the
     measured current, :func:`szdyn.recordings.smoothed_current`), N m."""
-    h = float(t[1] - t[0])
-    n = int(round(window_s / h))
-    n += (n + 1) % 2
-    return np.interp(t_feat, t, savgol_filter(tau, n, 2, mode="interp"))
+    return _smoothed_at(t, tau, t_feat, window_s, 0)
 
 
 class FeatureModel:
-    """Evaluate the model's smoothed band speed on prepared recordings.
+    """Evaluate the model's smoothed band speed (and motor torque, where measured) on prepared
+    recordings.
 
     Parameters
     ----------
@@ -236,8 +239,16 @@ class FeatureModel:
         self.close()
 
     # -- runs ------------------------------------------------------------------------------
+    def _has(self, key) -> bool:
+        """Whether the cache answers ``key``: a run shared from a model that did not ask for the
+        torque does not answer a recording with a measured one."""
+        if key not in self._cache:
+            return False
+        res = self._cache[key]
+        return res is None or res[2] is not None or self.recordings[self._index[key[0]]].tau is None
+
     def _run_all(self, keys):
-        todo = [k for k in dict.fromkeys(keys) if k not in self._cache]
+        todo = [k for k in dict.fromkeys(keys) if not self._has(k)]
         if not todo:
             return
         tasks = []

@@ -28,48 +28,47 @@ from .data import Prepared, WINDOW_S
 __all__ = ["sensor_noise", "bump_noise", "torque_sensor_noise", "torque_bump_noise"]
 
 
-def sensor_noise(p: Prepared, window_s: float = WINDOW_S) -> float:
-    """Sensor noise of the smoothed band speed of one recording (rad/s)."""
+def _half_difference(p: Prepared, smoothed) -> float:
+    """``std(f_even - f_odd) / 2`` at ``p.t_feat``, where ``smoothed(sub) -> (t, f)`` is the
+    smoothed feature of a sub-recording of the even or the odd rows."""
     rec = p.rec
     halves = []
     for k in (0, 1):
         sub = Recording(name=rec.name, t=rec.t[k::2], theta_w=rec.theta_w[k::2],
-                        theta_b=rec.theta_b[k::2], conditions=rec.conditions)
-        t, _, wb = speeds(sub, window_s)
-        halves.append(np.interp(p.t_feat, t, wb))
-    d = halves[0] - halves[1]
-    return float(np.std(d) / 2.0)
+                        theta_b=rec.theta_b[k::2],
+                        current=None if rec.current is None else rec.current[k::2], conditions=rec.conditions)
+        t, f = smoothed(sub)
+        halves.append(np.interp(p.t_feat, t, f))
+    return float(np.std(halves[0] - halves[1]) / 2.0)
+
+
+def _shifted_pair(model, i: int, base_changes: dict, feature) -> float:
+    """``rms(f_1 - f_2) / sqrt(2)`` of a model feature (``model.speeds`` or ``model.torques``)
+    of recording ``i`` at ``base_changes`` and with the wheel shifted by a quarter pitch."""
+    r = model.recordings[i]
+    # a quarter of a circle pitch: half a pitch would land on the symmetric configuration
+    off = r.params.default_wheel_offset() + 0.5 * math.pi / r.params.n_circles
+    a, b = (feature([(mc, {})], [i])[0][0] for mc in (base_changes, {**base_changes, "q_w0": off}))
+    return float(np.sqrt(np.mean((a - b) ** 2)) / math.sqrt(2.0))
+
+
+def sensor_noise(p: Prepared, window_s: float = WINDOW_S) -> float:
+    """Sensor noise of the smoothed band speed of one recording (rad/s)."""
+    return _half_difference(p, lambda sub: speeds(sub, window_s)[::2])
 
 
 def bump_noise(model, i: int, base_changes: dict) -> float:
     """Unreproducible part of the model's smoothed band speed for recording ``i`` (rad/s)."""
-    r = model.recordings[i]
-    # a quarter of a circle pitch: half a pitch would land on the symmetric configuration
-    shift = 0.5 * math.pi / r.params.n_circles
-    off = r.params.default_wheel_offset() + shift
-    a = model.speeds([(base_changes, {})], [i])[0][0]
-    b = model.speeds([({**base_changes, "q_w0": off}, {})], [i])[0][0]
-    return float(np.sqrt(np.mean((a - b) ** 2)) / math.sqrt(2.0))
+    return _shifted_pair(model, i, base_changes, model.speeds)
 
 
 def torque_sensor_noise(p: Prepared, window_s: float = WINDOW_S) -> float:
     """Sensor noise of the smoothed motor torque of one recording (N m), from its even and odd
     rows as in :func:`sensor_noise`; the recording must have ``tau``."""
-    rec = p.rec
-    halves = []
-    for k in (0, 1):
-        sub = Recording(name=rec.name, t=rec.t[k::2], theta_w=rec.theta_w[k::2],
-                        theta_b=rec.theta_b[k::2], current=rec.current[k::2], conditions=rec.conditions)
-        t, cur = smoothed_current(sub, window_s)
-        halves.append(np.interp(p.t_feat, t, cur))
-    return float(p.torque_constant * np.std(halves[0] - halves[1]) / 2.0)
+    return p.torque_constant * _half_difference(p, lambda sub: smoothed_current(sub, window_s))
 
 
 def torque_bump_noise(model, i: int, base_changes: dict) -> float:
     """Unreproducible part of the model's smoothed motor torque for recording ``i`` (N m): the
     same two runs as :func:`bump_noise` (cached)."""
-    r = model.recordings[i]
-    shift = 0.5 * math.pi / r.params.n_circles
-    off = r.params.default_wheel_offset() + shift
-    a, b = (model.torques([(mc, {})], [i])[0][0] for mc in (base_changes, {**base_changes, "q_w0": off}))
-    return float(np.sqrt(np.mean((a - b) ** 2)) / math.sqrt(2.0))
+    return _shifted_pair(model, i, base_changes, model.torques)
