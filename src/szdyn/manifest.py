@@ -74,6 +74,18 @@ def _is_real(v) -> bool:
     return isinstance(v, numbers.Real) and not isinstance(v, bool) and math.isfinite(float(v))
 
 
+def _table(data: dict, name: str, keys, nm: str) -> dict:
+    """The manifest's table ``[name]``, checked to be a table of known ``keys`` only."""
+    tbl = data[name]
+    if not isinstance(tbl, dict):
+        raise ManifestError(f"{nm}: '{name}' must be a table ([{name}])")
+    for key in tbl:
+        if key not in keys:
+            raise ManifestError(f"{nm}, [{name}]: unknown key '{key}'{_suggest(key, keys)}; "
+                                f"known: {', '.join(keys)}")
+    return tbl
+
+
 def _torque_constant(v, label: str) -> float:
     if not _is_real(v) or v <= 0:
         raise ManifestError(f"{label}: 'torque_constant' must be a number > 0 (N m/A), got {v!r}")
@@ -269,13 +281,7 @@ def read_manifest(path, *, check_files: bool = True) -> Manifest:
         entries.append(ManifestEntry(file=full, name=f, conditions=cond, torque_constant=kt))
 
     if "motor" in data:
-        tbl = data["motor"]
-        if not isinstance(tbl, dict):
-            raise ManifestError(f"{nm}: 'motor' must be a table ([motor])")
-        for key in tbl:
-            if key not in MOTOR_KEYS:
-                raise ManifestError(f"{nm}, [motor]: unknown key '{key}'{_suggest(key, MOTOR_KEYS)}; "
-                                    f"known: {', '.join(MOTOR_KEYS)}")
+        tbl = _table(data, "motor", MOTOR_KEYS, nm)
         if "torque_constant" in tbl:
             kt = _torque_constant(tbl["torque_constant"], f"{nm}, [motor]")
             entries = [e if e.torque_constant is not None else replace(e, torque_constant=kt)
@@ -303,13 +309,7 @@ def read_manifest(path, *, check_files: bool = True) -> Manifest:
 
     heldout = ()
     if "split" in data:
-        tbl = data["split"]
-        if not isinstance(tbl, dict):
-            raise ManifestError(f"{nm}: 'split' must be a table ([split])")
-        for key in tbl:
-            if key not in SPLIT_KEYS:
-                raise ManifestError(f"{nm}, [split]: unknown key '{key}'{_suggest(key, SPLIT_KEYS)}; "
-                                    f"known: {', '.join(SPLIT_KEYS)}")
+        tbl = _table(data, "split", SPLIT_KEYS, nm)
         h = tbl.get("heldout", [])
         seed = tbl.get("seed", 0)
         if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:

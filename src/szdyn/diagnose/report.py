@@ -542,35 +542,30 @@ def _plots(d, out: Path):
     save_png(fig, out / "candidates.png")
 
     held = [k for k, r in enumerate(recs) if r.role != "fit"] or list(range(n))
-    fig, axes = plt.subplots(len(held), 1, figsize=(7, 2.4 * len(held)), squeeze=False)
-    for ax, k in zip(axes[:, 0], held):
-        r = recs[k]
-        ax.plot(r.t_feat, r.y, "k", lw=1.2, label="measured")
-        ax.plot(r.t_feat, d.base_speed_[k], lw=1, label="before (calibrated base)")
+    _fit_panels(plt, d, held, lambda r: r.y, d.base_speed_, d.final_speed_, "measured",
+                "omega_b (rad/s)", 2.4, out / "heldout_fit.png")
+    tq = [k for k, r in enumerate(recs) if d.base_torque_.get(k) is not None]
+    if tq:
+        _fit_panels(plt, d, tq, lambda r: r.tau, d.base_torque_, d.final_torque_, "measured (K_t * current)",
+                    "motor torque (N m)", 2.2, out / "torque_fit.png")
+
+
+def _fit_panels(plt, d, idx, measured, before, after, label, ylabel, height, path):
+    """One panel per recording ``idx``: measured, the calibrated base and (if an effect was
+    selected) the updated model, against time."""
+    fig, axes = plt.subplots(len(idx), 1, figsize=(7, height * len(idx)), squeeze=False)
+    for ax, k in zip(axes[:, 0], idx):
+        r = d.recordings_[k]
+        ax.plot(r.t_feat, measured(r), "k", lw=1.2, label=label)
+        ax.plot(r.t_feat, before[k], lw=1, label="before (calibrated base)")
         if d.selected_:
-            ax.plot(r.t_feat, d.final_speed_[k], lw=1, ls="--", label=f"after (+ {d.selected_[0]})")
+            ax.plot(r.t_feat, after[k], lw=1, ls="--", label=f"after (+ {d.selected_[0]})")
         ax.set_title(f"{r.name} ({r.role})", fontsize=8)
-        ax.set_ylabel("omega_b (rad/s)")
+        ax.set_ylabel(ylabel)
     axes[-1, 0].set_xlabel("t (s)")
     axes[0, 0].legend(fontsize=7)
     fig.tight_layout()
-    save_png(fig, out / "heldout_fit.png")
-
-    tq = [k for k, r in enumerate(recs) if d.base_torque_.get(k) is not None]
-    if tq:
-        fig, axes = plt.subplots(len(tq), 1, figsize=(7, 2.2 * len(tq)), squeeze=False, sharex=True)
-        for ax, k in zip(axes[:, 0], tq):
-            r = recs[k]
-            ax.plot(r.t_feat, r.tau, "k", lw=1.2, label="measured (K_t * current)")
-            ax.plot(r.t_feat, d.base_torque_[k], lw=1, label="before (calibrated base)")
-            if d.selected_:
-                ax.plot(r.t_feat, d.final_torque_[k], lw=1, ls="--", label=f"after (+ {d.selected_[0]})")
-            ax.set_title(f"{r.name} ({r.role})", fontsize=8)
-            ax.set_ylabel("motor torque (N m)")
-        axes[-1, 0].set_xlabel("t (s)")
-        axes[0, 0].legend(fontsize=7)
-        fig.tight_layout()
-        save_png(fig, out / "torque_fit.png")
+    save_png(fig, path)
 
 
 def write_report(d, out) -> dict:
