@@ -3,7 +3,9 @@
 Steps (each a module of its own):
 
 1. calibrate the base model's coefficients on the fit recordings (:mod:`.fit`);
-2. estimate the noise floor (:mod:`.noise`);
+2. estimate the noise floor (:mod:`.noise`); where fit recordings have a measured motor torque
+   (current column and torque constant), its floor too, and calibrate again with the torque
+   residual weighted by the speed floor over the torque floor (:meth:`Diagnosis._torque_floor`);
 3. locate the mismatch in time, regime and frequency (:mod:`.locate`);
 4. screen every candidate of the library linearly, add the candidates whose signature the
    residual follows (:func:`~.selection.nominate`) and the best one switched on at finite
