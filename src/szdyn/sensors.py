@@ -283,18 +283,19 @@ def motor_torque(run) -> np.ndarray:
     ``k_drive (q_m - q_w) + c_drive (u_m - u_w)`` (the motor's own inertia is not modelled).
     Torque drive: the drive torque.
     """
-    o = run.outputs
+    t = run.trajectory.t
     if run.drive.mode == "torque":
-        return np.asarray(run.drive.evaluate(o["t"])[1], float)
+        return np.asarray(run.drive.evaluate(t)[1], float)
     if run.params["drive_mode"] == 2:
         from szdyn.drive import array_to_knots, evaluate_knots
 
         x = run.trajectory.x
         u_w = x[:, run.params.n_circles + 2]
-        q_m, u_m, _ = evaluate_knots(*array_to_knots(run.drive_array), o["t"])
+        q_m, u_m, _ = evaluate_knots(*array_to_knots(run.drive_array), t)
         return run.params["k_drive"] * (q_m - x[:, 0]) + run.params["c_drive"] * (u_m - u_w)
-    accel = np.asarray(run.drive.evaluate(o["t"])[2], float)
-    return run.params["I_W"] * accel - o["wheel_reaction_torque"]
+    # only here the per-sample contact outputs are needed
+    accel = np.asarray(run.drive.evaluate(t)[2], float)
+    return run.params["I_W"] * accel - run.outputs["wheel_reaction_torque"]
 
 
 def record_run(run, sensor: SensorModel | None = None, rng=None, *, name: str = "synthetic",

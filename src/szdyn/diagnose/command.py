@@ -113,8 +113,8 @@ def diagnose_command(argv) -> int:
     if unused and not args.no_current:
         print(f"diagnose: current column not used in {', '.join(unused)}: no torque constant in the "
               "manifest ([motor] torque_constant = N m/A, or per [[recording]])", file=sys.stderr)
-    lacking = [e.name for e in man.entries if e.torque_constant is not None
-               and not any(r.name == e.name and r.rec.current is not None for r in recs)]
+    with_current = {r.name for r in recs if r.rec.current is not None}
+    lacking = [e.name for e in man.entries if e.torque_constant is not None and e.name not in with_current]
     if lacking:
         print(f"diagnose: torque constant given but no current column in {', '.join(lacking)}",
               file=sys.stderr)

@@ -12,7 +12,7 @@ common term ``omega_w``. Slip per revolution and stroke are reported before and 
 
 When a recording has a ``current`` column and the manifest gives its torque constant, the
 **smoothed motor torque** ``K_t * current`` (same filter, value instead of derivative) is
-compared too, with the model's ``I_W * d(omega_w)/dt - wheel_reaction_torque``. The band speed
+compared too, with the model's (:func:`szdyn.sensors.motor_torque`). The band speed
 alone fixes the slider's forces only relative to each other (a friction and a load torque
 both a third too large slip alike); the torque fixes their size.
 """

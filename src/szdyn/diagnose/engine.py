@@ -286,20 +286,11 @@ class FeatureModel:
         list (per point) of list (per recording) of ndarray, shape (m_i,)
             Smoothed band speed (rad/s) at each recording's ``t_feat``.
         """
-        keys = [(self.recordings[i].name, _key(mc)) for mc, _ in points for i in which]
-        self._run_all(keys)
         out = []
-        for mc, sc in points:
-            row = []
-            for i in which:
-                r = self.recordings[i]
-                res = self._cache[(r.name, _key(mc))]
-                if res is None:
-                    row.append(np.zeros_like(r.y))
-                    continue
-                t, qb, _ = res
-                row.append(model_speed(t, apply_sensor_transform(t, qb, sc), r.t_feat))
-            out.append(row)
+        for (_, sc), row in zip(points, self._runs_for(points, which)):
+            out.append([np.zeros_like(r.y) if res is None else
+                        model_speed(res[0], apply_sensor_transform(res[0], res[1], sc), r.t_feat)
+                        for r, res in row])
         return out
 
     def torques(self, points, which: Sequence[int]):
@@ -308,20 +299,16 @@ class FeatureModel:
 
         The sensor changes of a point do not act on the torque (they are encoder errors).
         """
-        keys = [(self.recordings[i].name, _key(mc)) for mc, _ in points for i in which]
-        self._run_all(keys)
-        out = []
-        for mc, _ in points:
-            row = []
-            for i in which:
-                r = self.recordings[i]
-                if r.tau is None:
-                    row.append(None)
-                    continue
-                res = self._cache[(r.name, _key(mc))]
-                row.append(np.zeros_like(r.tau) if res is None else model_torque(res[0], res[2], r.t_feat))
-            out.append(row)
-        return out
+        return [[None if r.tau is None else np.zeros_like(r.tau) if res is None else
+                 model_torque(res[0], res[2], r.t_feat) for r, res in row]
+                for row in self._runs_for(points, which)]
+
+    def _runs_for(self, points, which):
+        """Per point, ``(recording, run)`` for each of ``which`` after running what the cache
+        lacks; a run is ``(t, theta_b, tau)`` or None if it failed."""
+        self._run_all([(self.recordings[i].name, _key(mc)) for mc, _ in points for i in which])
+        return [[(self.recordings[i], self._cache[(self.recordings[i].name, _key(mc))]) for i in which]
+                for mc, _ in points]
 
     def residuals(self, points, which: Sequence[int]):
         """Residuals per point, concatenated over ``which``: per recording, measured minus model
