@@ -1151,3 +1151,80 @@ def test_a_shared_run_without_the_torque_is_run_again_for_a_recording_with_one(l
         assert second.n_runs_ == 1 and tq is not None and np.all(np.isfinite(tq))
         second.speeds(point, [0])
         assert second.n_runs_ == 1
+
+
+# ----------------------------------------------------------------------------- wheel phase
+def test_the_wheel_phase_is_recovered_from_each_recording(null):
+    """At the true coefficients, the scan finds each recording's initial wheel angle (which the
+    encoders do not measure) to the estimate's uncertainty, modulo the half pitch by which this
+    wheel (8 rollers, 100 circles) is symmetric; there it fits clearly better than the scan's
+    median, and the runs at the estimated phase are the runs the model then makes."""
+    from szdyn.diagnose.data import prepare
+    from szdyn.diagnose.engine import FeatureModel, rms
+    from szdyn.diagnose.phase import IDENTIFIED_SHARE, PHASE_UNCERTAINTY, estimate_phases, pitch_angle
+    from szdyn.manifest import read_manifest
+
+    truth, _, out = null
+    recs = prepare(read_manifest(out.parent / "data" / "manifest.toml"))
+    tv = truth["perturbed"]
+    base = {k: tv[k]["value"] for k in ("k_c", "b_c", "k_imp", "b_imp", "mu_s", "mu_k")}
+    q0 = {r["file"]: r["q_w0"] for r in truth["recordings"]}
+    p = recs[0].params
+    assert p.n_circles == 100 and p["n_rollers"] == 8
+    pitch = pitch_angle(p)
+    with FeatureModel(recs, workers=1) as m:
+        est = estimate_phases(m, base, range(len(recs)))
+        for i, r in enumerate(recs):
+            e = est[i]
+            # distance to the truth in pitches, modulo the half-pitch symmetry
+            off = ((e.q_w0 - q0[r.name]) / pitch) % 0.5
+            assert min(off, 0.5 - off) <= PHASE_UNCERTAINTY, (r.name, off)
+            assert e.identified
+            assert e.median_rmse ** 2 - e.rmse ** 2 >= IDENTIFIED_SHARE * e.model_spread ** 2 > 0
+        m.phases = {i: e.q_w0 for i, e in est.items()}
+        n = m.n_runs_
+        at = m.speeds([(base, {})], range(len(recs)))[0]
+        assert m.n_runs_ == n                        # the scan's runs, reused
+        assert all(rms(r.y - v) == pytest.approx(est[i].rmse) for i, (r, v) in enumerate(zip(recs, at)))
+
+
+def test_null_diagnosis_estimates_the_phases_and_the_floor_loses_the_bumps(null):
+    """The end-to-end null: every recording's phase is identified, the floor's bump part is the
+    phase's uncertainty (well below the sensor part) and the report says so."""
+    _, d, out = null
+    assert d["wheel_phase"]["estimated"] and d["wheel_phase"]["base_over_floor"] <= d["wheel_phase"]["gate"]
+    ph = d["wheel_phase"]["recordings"]
+    assert set(ph) == set(d["noise_floor_per_recording"]) and all(v["identified"] for v in ph.values())
+    assert d["noise_floor_parts"]["bump"] < 0.5 * d["noise_floor_parts"]["sensor"]
+    assert d["cost"]["seconds"]["phase"] > 0 and d["cost"]["seconds"]["calibrate_phase"] > 0
+    assert "**Wheel phase.**" in (out / "report.md").read_text()
+
+
+def test_no_phase_starts_every_run_from_the_default_offset(null, monkeypatch):
+    from szdyn.diagnose import diagnosis
+
+    _, _, out = null
+    seen = []
+
+    def stop(self, recs):
+        seen.append(self.fit_phase)
+        raise UserInputError("stopped before fitting")
+    monkeypatch.setattr(diagnosis.Diagnosis, "fit", stop)
+    man = str(out.parent / "data" / "manifest.toml")
+    assert run_main(["diagnose", man, "--out", str(out.parent / "x")]) != 0
+    assert run_main(["diagnose", man, "--out", str(out.parent / "x"), "--no-phase"]) != 0
+    assert seen == [True, False]
+
+
+def test_a_large_mismatch_leaves_the_phases_unestimated(viscous):
+    """The concealed drag leaves the calibrated base far beyond the floor: a phase scan there
+    would line the model's bumps up with the missing drag, so none is made and every run keeps
+    the default offset (the report says why)."""
+    from szdyn.diagnose.phase import PHASE_GATE
+
+    _, d, out = viscous
+    ph = d["wheel_phase"]
+    assert ph["gate"] == PHASE_GATE and ph["base_over_floor"] > PHASE_GATE
+    assert not ph["estimated"] and ph["recordings"] == {}
+    assert "phase" not in d["cost"]["seconds"]
+    assert f"beyond {PHASE_GATE:g}x" in (out / "report.md").read_text()

@@ -45,6 +45,9 @@ def _build_parser():
     ap.add_argument("--no-current", action="store_true",
                     help="compare the band speed only, even where recordings have a current column and the "
                     "manifest its torque constant (by default their motor torque is compared too)")
+    ap.add_argument("--no-phase", action="store_true",
+                    help="start every model run from the default wheel offset instead of estimating each "
+                    "recording's initial wheel phase (the impact bumps then count in the noise floor)")
     ap.add_argument("--weighting", choices=("fallback", "always", "off"), default="fallback",
                     help="weight each recording's residual by the common noise floor over its own, so that "
                     "recordings whose impact bumps do not reproduce count less: 'fallback' (default) only in "
@@ -129,7 +132,8 @@ def diagnose_command(argv) -> int:
     d = Diagnosis(cands, shortlist=args.shortlist, nominate_r2=args.nominate_r2,
                   probe_screen=not args.no_probe_screen, max_jac=args.max_jac,
                   polish_jac=args.polish_jac, rivals=args.rivals, exchange_split=not args.no_exchange_split,
-                  weighting=args.weighting, unstall=args.unstall, workers=args.workers,
+                  weighting=args.weighting, unstall=args.unstall, fit_phase=not args.no_phase,
+                  workers=args.workers,
                   log=log, progress=progress).fit(recs)
     js = write_report(d, args.out)
     sel = ", ".join(js["selected"]) or d.verdict_

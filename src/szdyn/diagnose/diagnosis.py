@@ -3,7 +3,10 @@
 Steps (each a module of its own):
 
 1. calibrate the base model's coefficients on the fit recordings (:mod:`.fit`);
-2. estimate the noise floor (:mod:`.noise`); where fit recordings have a measured motor torque
+2. estimate the noise floor (:mod:`.noise`); where the calibrated base is within
+   :data:`.phase.PHASE_GATE` of it, estimate each recording's initial wheel phase
+   (:mod:`.phase`), calibrate again with the phases and estimate the floor again (the bumps
+   left by the phase's uncertainty); where fit recordings have a measured motor torque
    (current column and torque constant), its floor too, and calibrate again with the torque
    residual weighted by the speed floor over the torque floor (:meth:`Diagnosis._torque_floor`);
 3. locate the mismatch in time, regime and frequency (:mod:`.locate`);
@@ -49,6 +52,7 @@ from .engine import FeatureModel, rms
 from .fit import Hypothesis, fit_hypothesis, jacobian, linear_step
 from .locate import follows, locate
 from .noise import bump_noise, sensor_noise, torque_bump_noise, torque_sensor_noise
+from .phase import PHASE_GATE, estimate_phases
 from .selection import SelectionRule, decide, nominate, rivals, screen
 from .split import exchange_pairs, exchanged, hidden_conditions
 
@@ -162,6 +166,11 @@ class Diagnosis:
         :data:`FLOOR_SPREAD`, run again weighted and keep that answer if it names an effect
         (:meth:`fit`). ``"off"``: never. See docs/DIAGNOSIS-DESIGN.md, "Weighting the
         recordings by their own floors".
+    fit_phase : bool
+        Estimate each recording's initial wheel phase after the first calibration, where that
+        fits within :data:`.phase.PHASE_GATE` of the noise floor, and calibrate again with it
+        (:mod:`.phase`); the noise floor's bump part is then the phase's uncertainty instead of
+        a quarter pitch. False: every run starts from the default offset.
     workers : int, optional
         Processes for the model runs (default: CPU count).
     log : callable(str), optional
@@ -180,6 +189,12 @@ class Diagnosis:
     floor_per_recording_ : dict
         Per recording, its own ``sensor`` and ``bump`` parts (rad/s); the floor takes the RMS of
         the first and the median of the second over the fit recordings.
+    phases_ : dict
+        Per recording (name), its estimated initial wheel phase
+        (:meth:`.phase.PhaseEstimate.to_dict`); empty when not estimated.
+    phase_ : dict
+        ``estimated`` (bool), ``base_over_floor`` (the calibrated base's fit RMSE over the
+        floor with quarter-pitch bumps) and ``gate`` (:data:`.phase.PHASE_GATE`).
     floor_spread_ : float
         Largest over smallest own floor (sensor and bumps in quadrature) of all recordings.
     weighted_ : bool
@@ -272,8 +287,8 @@ class Diagnosis:
     def __init__(self, candidates=None, rule: SelectionRule | None = None, *, shortlist: int = 2,
                  nominate_r2: float | None = 0.3, probe_screen: bool = True, max_jac: int = 4,
                  polish_jac: int | None = None, rivals: int = 2, exchange_split: bool = True,
-                 weighting: str = "fallback", unstall: int = 2, workers: int | None = None, log=None,
-                 progress=None):
+                 weighting: str = "fallback", unstall: int = 2, fit_phase: bool = True,
+                 workers: int | None = None, log=None, progress=None):
         self.candidates = candidates
         self.rule = rule or SelectionRule()
         self.shortlist = shortlist
@@ -285,6 +300,7 @@ class Diagnosis:
         self.exchange_split = exchange_split
         self.weighting = weighting
         self.unstall = unstall
+        self.fit_phase = fit_phase
         self.workers = workers
         self.log = log or (lambda msg: None)
         self.progress = progress
@@ -607,6 +623,29 @@ class Diagnosis:
                  f"bumps {s_bump:.3g}); weight {w:.3g} rad/s per N m")
         return out
 
+    def _noise_floor(self, model, recs, fit_idx, all_idx, base_mc) -> dict:
+        """Set the noise floor (``floor_``, its parts, per recording, spread) at the model point
+        ``base_mc``; returns each recording's own floor (rad/s) by index."""
+        held_idx = [i for i in all_idx if i not in fit_idx]
+        sens = [sensor_noise(recs[i]) for i in fit_idx]
+        bump = [bump_noise(model, i, base_mc) for i in fit_idx]
+        s_sens = math.sqrt(np.mean(np.square(sens)))
+        # median: one recording whose start flips between stick and slip must not inflate the floor
+        s_bump = float(np.median(bump))
+        self.floor_ = math.hypot(s_sens, s_bump)
+        self.floor_parts_ = {"sensor": s_sens, "bump": s_bump}
+        # held-out recordings' own floors too (they judge; the common floor is the fit ones')
+        sens += [sensor_noise(recs[i]) for i in held_idx]
+        bump += [bump_noise(model, i, base_mc) for i in held_idx]
+        idx = fit_idx + held_idx
+        self.floor_per_recording_ = {recs[i].name: {"sensor": a, "bump": b} for i, a, b in zip(idx, sens, bump)}
+        # (never 0: a noise-free synthetic recording would divide by it)
+        own = {i: max(math.hypot(a, b), 1e-12) for i, a, b in zip(idx, sens, bump)}
+        self.floor_spread_ = max(own.values()) / min(own.values())
+        self.log(f"noise floor {self.floor_:.4g} rad/s (sensor {s_sens:.3g}, bumps {s_bump:.3g}); "
+                 f"the recordings' own floors differ {self.floor_spread_:.1f}x")
+        return own
+
     def _fit_pass(self, recs, weighted: bool = False) -> None:
         """One diagnosis with the roles of ``recs`` as they are (see :meth:`fit`); ``weighted``:
         each recording's residual weighted by the common floor over its own."""
@@ -643,26 +682,37 @@ class Diagnosis:
             self.log(f"calibrated: fit RMSE {cal.rmse_fit:.4g} rad/s after {cal.extra['njac']} Jacobians")
             lap("calibrate")
 
-            # 2. noise floor
+            # 2. noise floor, first with the bumps of a quarter-pitch phase shift
             base_mc, _ = base_h.point(cal.x)
-            sens = [sensor_noise(recs[i]) for i in fit_idx]
-            bump = [bump_noise(model, i, base_mc) for i in fit_idx]
-            s_sens = math.sqrt(np.mean(np.square(sens)))
-            # median: one recording whose start flips between stick and slip must not inflate the floor
-            s_bump = float(np.median(bump))
-            self.floor_ = math.hypot(s_sens, s_bump)
-            self.floor_parts_ = {"sensor": s_sens, "bump": s_bump}
-            # held-out recordings' own floors too (they judge; the common floor is the fit ones')
-            sens += [sensor_noise(recs[i]) for i in held_idx]
-            bump += [bump_noise(model, i, base_mc) for i in held_idx]
-            self.floor_per_recording_ = {recs[i].name: {"sensor": a, "bump": b}
-                                         for i, a, b in zip(all_idx, sens, bump)}
-            # (never 0: a noise-free synthetic recording would divide by it)
-            own = {i: max(math.hypot(a, b), 1e-12) for i, a, b in zip(all_idx, sens, bump)}
-            self.floor_spread_ = max(own.values()) / min(own.values())
-            self.log(f"noise floor {self.floor_:.4g} rad/s (sensor {s_sens:.3g}, bumps {s_bump:.3g}); "
-                     f"the recordings' own floors differ {self.floor_spread_:.1f}x")
+            own = self._noise_floor(model, recs, fit_idx, all_idx, base_mc)
             lap("noise_floor")
+
+            # 2a. each recording's initial wheel phase (:mod:`.phase`): the impact bumps and the
+            # breakaway follow it; estimated only where the calibrated base is near the floor,
+            # because a large missing effect dominates the residual and biases the scan
+            self.phases_ = {}
+            ratio = cal.rmse_fit / self.floor_
+            self.phase_ = {"estimated": False, "base_over_floor": ratio, "gate": PHASE_GATE}
+            if self.fit_phase and ratio > PHASE_GATE:
+                self.log(f"calibrated base is {ratio:.2f}x the floor (quarter-pitch bumps), beyond "
+                         f"{PHASE_GATE:g}x: wheel phases not estimated (the missing effect would bias them)")
+            elif self.fit_phase:
+                est = estimate_phases(model, base_mc, all_idx)
+                model.phases = {i: e.q_w0 for i, e in est.items() if e.identified}
+                self.phases_ = {recs[i].name: e.to_dict() for i, e in est.items()}
+                self.phase_["estimated"] = True
+                self.log(f"wheel phase identified on {len(model.phases)} of {len(all_idx)} recording(s): "
+                         + ", ".join(f"{recs[i].name} {e.phase:.3f} pitch ({e.rmse:.3g} against {e.median_rmse:.3g})"
+                                     for i, e in est.items()))
+                lap("phase")
+                if any(i in model.phases for i in fit_idx):
+                    cal = fit_hypothesis(model, base_h, fit_idx, x0=cal.x, max_jac=2 * self.max_jac, tol=FIT_TOL)
+                    self.calibrated_ = cal
+                    self.log(f"recalibrated with the wheel phases: fit RMSE {cal.rmse_fit:.4g} rad/s")
+                    lap("calibrate_phase")
+                    base_mc, _ = base_h.point(cal.x)
+                own = self._noise_floor(model, recs, fit_idx, all_idx, base_mc)
+                lap("noise_floor")
             self.weighted_ = weighted
             if weighted:
                 # each recording's expected RMS becomes the common floor

@@ -216,6 +216,10 @@ class FeatureModel:
         #: weight (s^-1 rad / (N m)) of the motor-torque residual per recording index; a
         #: recording not in it (default: all) contributes its band speed only
         self.torque_weights = {}
+        #: initial wheel angle ``q_w0`` (rad) per recording index, estimated from the recording
+        #: (:mod:`.phase`); a recording not in it, or a point that sets ``q_w0`` itself, starts
+        #: from the default offset
+        self.phases = {}
 
     # -- pool ------------------------------------------------------------------------------
     def _executor(self):
@@ -303,12 +307,18 @@ class FeatureModel:
                  model_torque(res[0], res[2], r.t_feat) for r, res in row]
                 for row in self._runs_for(points, which)]
 
+    def _run_key(self, i: int, mc: dict) -> tuple:
+        """Cache key of recording ``i`` at model changes ``mc``, its wheel phase included."""
+        if i in self.phases and "q_w0" not in mc:
+            mc = {**mc, "q_w0": self.phases[i]}
+        return self.recordings[i].name, _key(mc)
+
     def _runs_for(self, points, which):
         """Per point, ``(recording, run)`` for each of ``which`` after running what the cache
         lacks; a run is ``(t, theta_b, tau)`` or None if it failed."""
-        self._run_all([(self.recordings[i].name, _key(mc)) for mc, _ in points for i in which])
-        return [[(self.recordings[i], self._cache[(self.recordings[i].name, _key(mc))]) for i in which]
-                for mc, _ in points]
+        keys = [[self._run_key(i, mc) for i in which] for mc, _ in points]
+        self._run_all([k for row in keys for k in row])
+        return [[(self.recordings[i], self._cache[k]) for i, k in zip(which, row)] for row in keys]
 
     def residuals(self, points, which: Sequence[int]):
         """Residuals per point, concatenated over ``which``: per recording, measured minus model

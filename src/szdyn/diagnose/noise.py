@@ -8,7 +8,9 @@ Two parts, both estimated without knowing the truth:
   twice the variance of the whole, the difference four times).
 * **Unreproducible impact bumps**: the model itself run twice with the wheel's initial offset
   shifted by a quarter of a circle pitch; the bumps' phase changes but not the physics, so
-  ``sigma_bump = rms(v_1 - v_2) / sqrt(2)``.
+  ``sigma_bump = rms(v_1 - v_2) / sqrt(2)``. Where the recording's phase was estimated
+  (:mod:`.phase`), the shift is the estimate's uncertainty instead (1/32 pitch): what remains
+  unreproducible is the phase's uncertainty.
 
 ``floor = sqrt(sigma_sensor^2 + sigma_bump^2)`` (rad/s) is the RMSE a correct model would
 reach; the diagnosis calls a mismatch significant only above it.
@@ -24,6 +26,7 @@ import numpy as np
 
 from ..recordings import Recording, smoothed_current, speeds
 from .data import Prepared, WINDOW_S
+from .phase import PHASE_UNCERTAINTY
 
 __all__ = ["sensor_noise", "bump_noise", "torque_sensor_noise", "torque_bump_noise"]
 
@@ -46,8 +49,13 @@ def _shifted_pair(model, i: int, base_changes: dict, feature) -> float:
     """``rms(f_1 - f_2) / sqrt(2)`` of a model feature (``model.speeds`` or ``model.torques``)
     of recording ``i`` at ``base_changes`` and with the wheel shifted by a quarter pitch."""
     r = model.recordings[i]
-    # a quarter of a circle pitch: half a pitch would land on the symmetric configuration
-    off = r.params.default_wheel_offset() + 0.5 * math.pi / r.params.n_circles
+    pitch = 2.0 * math.pi / r.params.n_circles
+    if i in model.phases:
+        # the phase was estimated (:mod:`.phase`): what is left is its uncertainty
+        off = model.phases[i] + PHASE_UNCERTAINTY * pitch
+    else:
+        # a quarter of a circle pitch: half a pitch would land on the symmetric configuration
+        off = r.params.default_wheel_offset() + 0.25 * pitch
     a, b = (feature([(mc, {})], [i])[0][0] for mc in (base_changes, {**base_changes, "q_w0": off}))
     return float(np.sqrt(np.mean((a - b) ** 2)) / math.sqrt(2.0))
 

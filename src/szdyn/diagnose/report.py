@@ -23,6 +23,7 @@ from .candidates import CANDIDATES, FIXED_UNIDENTIFIED, primary_std
 from .data import FEATURE_DT, WINDOW_S
 from .diagnosis import AMPLITUDE_PROBES
 from .locate import feature_table
+from .phase import IDENTIFIED_SHARE, PHASE_UNCERTAINTY
 
 __all__ = ["write_report", "to_json", "updated_parameters"]
 
@@ -232,6 +233,7 @@ def _to_json(d) -> dict:
         "heldout_beyond_floor": [{"recording": k, "ratio": v} for k, v in d.heldout_beyond_floor_.items()],
         "split": {"heldout": [r.name for r in d.recordings_ if r.role != "fit"], "first": d.first_split_,
                   "unused": d.unused_split_, "hidden": d.hidden_conditions_},
+        "wheel_phase": {**d.phase_, "recordings": d.phases_},
         "noise_floor": d.floor_, "noise_floor_parts": d.floor_parts_,
         "noise_floor_per_recording": d.floor_per_recording_,
         "weights": d.weights_,
@@ -299,6 +301,36 @@ def _split_md(d) -> list:
               "that recording is either less reproducible than the floor says or shows something this "
               "model does not have.", ""]
     return L
+
+
+def _phase_md(d) -> list:
+    """Paragraph on the recordings' initial wheel phases: estimated, or why not."""
+    lead = ("**Wheel phase.** Neither encoder measures where the rollers start relative to the band's "
+            "circles, and the impact bumps and the breakaway follow it. ")
+    if not d.fit_phase:
+        return [lead + "Every run started from the default offset (`--no-phase`); the floor counts the "
+                "bumps of a quarter-pitch shift.", ""]
+    if not d.phases_:
+        return [lead + f"The calibrated base fitted {d.phase_['base_over_floor']:.2f}x the floor (with "
+                "the bumps of a quarter-pitch shift), beyond "
+                f"{d.phase_['gate']:g}x: a mismatch that large would bias a phase scan, so every run "
+                "started from the default offset and the floor counts the quarter-pitch bumps.", ""]
+    ok = [k for k, v in d.phases_.items() if v["identified"]]
+    return [lead + "So each recording's initial "
+            "wheel angle was estimated at the first calibration (a scan over one circle pitch, refined to "
+            "1/64 pitch; `szdyn.diagnose.phase`), on held-out recordings too (it is an initial state, not a "
+            "model parameter, and the models before and after share it), the calibrated base being "
+            f"{d.phase_['base_over_floor']:.2f}x the floor with quarter-pitch bumps (within "
+            f"{d.phase_['gate']:g}x). It counts as identified where "
+            "the scan's median squared RMSE exceeds the best phase's by at least "
+            f"{IDENTIFIED_SHARE:g} of the model's own squared change over the scan (the recording's "
+            "bumps then follow the model's): " + ", ".join(
+                f"`{k}` {v['phase_pitch']:.3f} pitch (RMSE {_f(v['rmse'], '.3g')} against a median "
+                f"{_f(v['median_rmse'], '.3g')}, model change {_f(v['model_spread'], '.3g')} rad/s"
+                + ("" if v["identified"] else ", not identified: default offset") + ")"
+                for k, v in d.phases_.items())
+            + f". On the {len(ok)} identified, the floor's bump part is the phase's uncertainty "
+            f"({PHASE_UNCERTAINTY:g} pitch) instead of a quarter pitch.", ""]
 
 
 def _torque_md(d) -> list:
@@ -400,6 +432,7 @@ def _report_md(d, js) -> str:
               "reproducible recordings show (`--weighting always` weights each recording by its own "
               "floor; by default that is tried when nothing is named and they differ by more than "
               f"{d.weighting_['threshold']:g}x)."), "",
+          *_phase_md(d),
           *_torque_md(d),
           "## Calibration (base model, fit recordings)", "",
           "| coefficient | value | std | unit |", "|---|---|---|---|"]
