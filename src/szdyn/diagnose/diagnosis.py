@@ -682,6 +682,14 @@ class Diagnosis:
             self.log(f"calibrated: fit RMSE {cal.rmse_fit:.4g} rad/s after {cal.extra['njac']} Jacobians")
             lap("calibrate")
 
+            def recalibrate(cal, why: str, name: str):
+                """Calibrate the base again from ``cal`` once the residual has changed (``why``)."""
+                cal = self.calibrated_ = fit_hypothesis(model, base_h, fit_idx, x0=cal.x,
+                                                        max_jac=2 * self.max_jac, tol=FIT_TOL)
+                self.log(f"recalibrated {why}: fit RMSE {cal.rmse_fit:.4g} rad/s")
+                lap(name)
+                return cal
+
             # 2. noise floor, first with the bumps of a quarter-pitch phase shift
             base_mc, _ = base_h.point(cal.x)
             own = self._noise_floor(model, recs, fit_idx, all_idx, base_mc)
@@ -706,10 +714,7 @@ class Diagnosis:
                                      for i, e in est.items()))
                 lap("phase")
                 if any(i in model.phases for i in fit_idx):
-                    cal = fit_hypothesis(model, base_h, fit_idx, x0=cal.x, max_jac=2 * self.max_jac, tol=FIT_TOL)
-                    self.calibrated_ = cal
-                    self.log(f"recalibrated with the wheel phases: fit RMSE {cal.rmse_fit:.4g} rad/s")
-                    lap("calibrate_phase")
+                    cal = recalibrate(cal, "with the wheel phases", "calibrate_phase")
                     base_mc, _ = base_h.point(cal.x)
                 own = self._noise_floor(model, recs, fit_idx, all_idx, base_mc)
                 lap("noise_floor")
@@ -719,21 +724,14 @@ class Diagnosis:
                 model.weights = {i: self.floor_ / own[i] for i in all_idx}
                 self.log("weighting the recordings by their own floors: "
                          + ", ".join(f"{recs[i].name} {model.weights[i]:.2f}" for i in all_idx))
-                cal = fit_hypothesis(model, base_h, fit_idx, x0=cal.x, max_jac=2 * self.max_jac, tol=FIT_TOL)
-                self.calibrated_ = cal
-                self.log(f"recalibrated (weighted): fit RMSE {cal.rmse_fit:.4g} rad/s")
-                lap("calibrate_weighted")
+                cal = recalibrate(cal, "(weighted)", "calibrate_weighted")
             self.weights_ = {recs[i].name: model.weights.get(i, 1.0) for i in all_idx}
             # 2b. motor torque: recordings with a current column and a torque constant add
             # their smoothed torque residual, weighted so that a correct model's reaches the
             # speed floor too, and the base model is calibrated again with it
             self.torque_ = self._torque_floor(model, recs, fit_idx, all_idx, base_mc)
             if self.torque_ is not None and self.torque_["used"]:
-                cal = fit_hypothesis(model, base_h, fit_idx, x0=cal.x, max_jac=2 * self.max_jac, tol=FIT_TOL)
-                self.calibrated_ = cal
-                self.log(f"recalibrated with the motor torque: fit RMSE {cal.rmse_fit:.4g} rad/s "
-                         f"(speed and weighted torque)")
-                lap("calibrate_torque")
+                cal = recalibrate(cal, "with the motor torque (speed and weighted torque)", "calibrate_torque")
             self.mismatch_ = self.rule.mismatch(cal.rmse_fit, self.floor_)
             self.log(f"calibrated base is {cal.rmse_fit / self.floor_:.2f}x the floor")
             polish = 2 * self.max_jac if self.polish_jac is None else self.polish_jac
