@@ -1181,8 +1181,10 @@ def test_the_wheel_phase_is_recovered_from_each_recording(null):
             assert min(off, 0.5 - off) <= PHASE_UNCERTAINTY, (r.name, off)
             assert e.identified
             assert e.median_rmse ** 2 - e.rmse ** 2 >= IDENTIFIED_SHARE * e.model_spread ** 2 > 0
-        m.phases = {i: e.q_w0 for i, e in est.items()}
+        # a whole point (model changes, sensor changes) scans the same runs
         n = m.n_runs_
+        assert estimate_phases(m, (base, {}), [0])[0] == est[0] and m.n_runs_ == n
+        m.phases = {i: e.q_w0 for i, e in est.items()}
         at = m.speeds([(base, {})], range(len(recs)))[0]
         assert m.n_runs_ == n                        # the scan's runs, reused
         assert all(rms(r.y - v) == pytest.approx(est[i].rmse) for i, (r, v) in enumerate(zip(recs, at)))
@@ -1190,7 +1192,10 @@ def test_the_wheel_phase_is_recovered_from_each_recording(null):
 
 def test_null_diagnosis_estimates_the_phases_and_the_floor_loses_the_bumps(null):
     """The end-to-end null: every recording's phase is identified, the floor's bump part is the
-    phase's uncertainty (well below the sensor part) and the report says so."""
+    phase's uncertainty (well below the sensor part) and the report says so; the held-out
+    recordings' phases, estimated again for the final model, are the truth's."""
+    from szdyn.diagnose.phase import PHASE_UNCERTAINTY
+
     _, d, out = null
     assert d["wheel_phase"]["estimated"] and d["wheel_phase"]["base_over_floor"] <= d["wheel_phase"]["gate"]
     ph = d["wheel_phase"]["recordings"]
@@ -1198,6 +1203,18 @@ def test_null_diagnosis_estimates_the_phases_and_the_floor_loses_the_bumps(null)
     assert d["noise_floor_parts"]["bump"] < 0.5 * d["noise_floor_parts"]["sensor"]
     assert d["cost"]["seconds"]["phase"] > 0 and d["cost"]["seconds"]["calibrate_phase"] > 0
     assert "**Wheel phase.**" in (out / "report.md").read_text()
+    # the held-out recordings' phases, estimated again for the final model (here the base)
+    truth = null[0]
+    held = d["split"]["heldout"]
+    assert held and set(d["wheel_phase"]["heldout"]) == set(held)
+    q0 = {r["file"]: r["q_w0"] for r in truth["recordings"]}
+    pitch = 2 * math.pi / 100
+    for k in held:
+        v = d["wheel_phase"]["heldout"][k]
+        off = ((v["q_w0"] - q0[k]) / pitch) % 0.5
+        assert min(off, 0.5 - off) <= PHASE_UNCERTAINTY, (k, off)
+    assert d["cost"]["seconds"]["heldout_phase"] > 0
+    assert "estimated again for each model" in (out / "report.md").read_text()
 
 
 def test_no_phase_starts_every_run_from_the_default_offset(null, monkeypatch):

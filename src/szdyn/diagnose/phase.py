@@ -12,9 +12,10 @@ over a pitch of phases, and by 0.0054-0.0060 rad/s at the best phase of a 16-poi
 is the sensor noise (0.0041-0.0059); the best phase is the true one to 1/64 pitch, modulo the
 half pitch by which this wheel (8 rollers, 100 circles) is symmetric; the same at the calibrated
 coefficients. The phase is therefore estimated per recording, like an initial state in output-
-error identification, on every recording (held-out ones too: it is not a model parameter, and
-the before and after models share it), where the calibrated base is near the floor
-(:data:`PHASE_GATE`).
+error identification, on every recording, where the calibrated base is near the floor
+(:data:`PHASE_GATE`). A held-out recording's phase is estimated again for each model judged on
+it (the base and every refitted candidate): a phase estimated at a model that lacks an effect
+is biased against the model that has it (encoder_delay seed 19: up to 0.12 pitch off).
 """
 from __future__ import annotations
 
@@ -96,8 +97,9 @@ def estimate_phases(model, base_changes: dict, which, *, n_scan: int = N_SCAN,
     Parameters
     ----------
     model : FeatureModel
-    base_changes : dict
-        Model parameter changes of the point (no ``q_w0``).
+    base_changes : dict or tuple of (dict, dict)
+        Model parameter changes of the point (no ``q_w0``), or a whole point
+        ``(model changes, sensor changes)`` (e.g. a candidate's with an encoder delay).
     which : sequence of int
         Recording indices.
     n_scan : int
@@ -140,5 +142,6 @@ def estimate_phases(model, base_changes: dict, which, *, n_scan: int = N_SCAN,
 def _residuals_at(model, i, base_changes, off, pitch, fracs) -> list:
     """Residuals of recording ``i`` with the wheel started ``fracs`` pitches past ``off`` (one
     batch of runs)."""
-    pts = [({**base_changes, "q_w0": off + (f % 1.0) * pitch}, {}) for f in fracs]
+    mc, sc = base_changes if isinstance(base_changes, tuple) else (base_changes, {})
+    pts = [({**mc, "q_w0": off + (f % 1.0) * pitch}, sc) for f in fracs]
     return list(model.residuals(pts, [i]))

@@ -318,8 +318,7 @@ def _phase_md(d) -> list:
     ok = [k for k, v in d.phases_.items() if v["identified"]]
     return [lead + "So each recording's initial "
             "wheel angle was estimated at the first calibration (a scan over one circle pitch, refined to "
-            "1/64 pitch; `szdyn.diagnose.phase`), on held-out recordings too (it is an initial state, not a "
-            "model parameter, and the models before and after share it), the calibrated base being "
+            "1/64 pitch; `szdyn.diagnose.phase`), the calibrated base being "
             f"{d.phase_['base_over_floor']:.2f}x the floor with quarter-pitch bumps (within "
             f"{d.phase_['gate']:g}x). It counts as identified where "
             "the scan's median squared RMSE exceeds the best phase's by at least "
@@ -330,7 +329,21 @@ def _phase_md(d) -> list:
                 + ("" if v["identified"] else ", not identified: default offset") + ")"
                 for k, v in d.phases_.items())
             + f". On the {len(ok)} identified, the floor's bump part is the phase's uncertainty "
-            f"({PHASE_UNCERTAINTY:g} pitch) instead of a quarter pitch.", ""]
+            f"({PHASE_UNCERTAINTY:g} pitch) instead of a quarter pitch."
+            + _heldout_phase_md(d), ""]
+
+
+def _heldout_phase_md(d) -> str:
+    """The sentence on the held-out recordings' phases, estimated again per model."""
+    held = d.phase_.get("heldout")
+    if not held:
+        return ""
+    return (" The held-out recordings' phases were estimated again for each model judged on them (the "
+            "calibrated base and every refitted candidate), since a phase estimated at a model that lacks "
+            "an effect is biased against the model that has it: an initial state estimated on the "
+            "validation data, as output-error identification does. The final model's: " + ", ".join(
+                f"`{k}` " + ("not identified (default offset)" if v is None else f"{v['phase_pitch']:.3f} pitch")
+                for k, v in held.items()) + ".")
 
 
 def _torque_md(d) -> list:
