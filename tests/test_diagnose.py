@@ -1154,6 +1154,13 @@ def test_a_shared_run_without_the_torque_is_run_again_for_a_recording_with_one(l
 
 
 # ----------------------------------------------------------------------------- wheel phase
+def _pitches_apart(q_a, q_b, n_circles) -> float:
+    """Distance of two initial wheel angles (rad) in circle pitches, modulo the half pitch by
+    which this wheel (8 rollers, 100 circles) is symmetric."""
+    off = ((q_a - q_b) * n_circles / (2 * math.pi)) % 0.5
+    return min(off, 0.5 - off)
+
+
 def test_the_wheel_phase_is_recovered_from_each_recording(null):
     """At the true coefficients, the scan finds each recording's initial wheel angle (which the
     encoders do not measure) to the estimate's uncertainty, modulo the half pitch by which this
@@ -1161,7 +1168,7 @@ def test_the_wheel_phase_is_recovered_from_each_recording(null):
     median, and the runs at the estimated phase are the runs the model then makes."""
     from szdyn.diagnose.data import prepare
     from szdyn.diagnose.engine import FeatureModel, rms
-    from szdyn.diagnose.phase import IDENTIFIED_SHARE, PHASE_UNCERTAINTY, estimate_phases, pitch_angle
+    from szdyn.diagnose.phase import IDENTIFIED_SHARE, PHASE_UNCERTAINTY, estimate_phases
     from szdyn.manifest import read_manifest
 
     truth, _, out = null
@@ -1171,14 +1178,12 @@ def test_the_wheel_phase_is_recovered_from_each_recording(null):
     q0 = {r["file"]: r["q_w0"] for r in truth["recordings"]}
     p = recs[0].params
     assert p.n_circles == 100 and p["n_rollers"] == 8
-    pitch = pitch_angle(p)
     with FeatureModel(recs, workers=1) as m:
         est = estimate_phases(m, base, range(len(recs)))
         for i, r in enumerate(recs):
             e = est[i]
-            # distance to the truth in pitches, modulo the half-pitch symmetry
-            off = ((e.q_w0 - q0[r.name]) / pitch) % 0.5
-            assert min(off, 0.5 - off) <= PHASE_UNCERTAINTY, (r.name, off)
+            off = _pitches_apart(e.q_w0, q0[r.name], p.n_circles)
+            assert off <= PHASE_UNCERTAINTY, (r.name, off)
             assert e.identified
             assert e.median_rmse ** 2 - e.rmse ** 2 >= IDENTIFIED_SHARE * e.model_spread ** 2 > 0
         # a whole point (model changes, sensor changes) scans the same runs
@@ -1208,11 +1213,9 @@ def test_null_diagnosis_estimates_the_phases_and_the_floor_loses_the_bumps(null)
     held = d["split"]["heldout"]
     assert held and set(d["wheel_phase"]["heldout"]) == set(held)
     q0 = {r["file"]: r["q_w0"] for r in truth["recordings"]}
-    pitch = 2 * math.pi / 100
     for k in held:
         v = d["wheel_phase"]["heldout"][k]
-        off = ((v["q_w0"] - q0[k]) / pitch) % 0.5
-        assert min(off, 0.5 - off) <= PHASE_UNCERTAINTY, (k, off)
+        assert v["identified"] and _pitches_apart(v["q_w0"], q0[k], 100) <= PHASE_UNCERTAINTY, (k, v)
     assert d["cost"]["seconds"]["heldout_phase"] > 0
     assert "estimated again for each model" in (out / "report.md").read_text()
 

@@ -53,7 +53,7 @@ from .engine import FeatureModel, rms
 from .fit import Hypothesis, fit_hypothesis, jacobian, linear_step
 from .locate import follows, locate
 from .noise import bump_noise, sensor_noise, torque_bump_noise, torque_sensor_noise
-from .phase import PHASE_GATE, estimate_phases, pitch_angle
+from .phase import PHASE_GATE, estimate_phases
 from .selection import SelectionRule, decide, nominate, rivals, screen
 from .split import exchange_pairs, exchanged, hidden_conditions
 
@@ -195,7 +195,7 @@ class Diagnosis:
         (:meth:`.phase.PhaseEstimate.to_dict`) at the first calibration; empty when not
         estimated. The held-out recordings' phases are estimated again for each model judged on
         them (the calibrated base and every refitted candidate); ``phase_["heldout"]`` holds the
-        final model's (None: not identified, default offset).
+        final model's, in the same form (one not identified keeps the default offset).
     phase_ : dict
         ``estimated`` (bool), ``base_over_floor`` (the calibrated base's fit RMSE over the
         floor with quarter-pitch bumps) and ``gate`` (:data:`.phase.PHASE_GATE`).
@@ -982,15 +982,15 @@ class Diagnosis:
             # the floor). Each model, the base included, is judged with the held-out phases that
             # fit it best: an initial state estimated on the validation data, as output-error
             # identification does. One scan per model and held-out recording (20 runs each).
-            held_phases = {}                  # None (the base) or candidate id -> {i: q_w0}
+            held_phases = {}                  # None (the base) or candidate id -> {i: PhaseEstimate}
             fit_phases = {i: q for i, q in model.phases.items() if i not in held_idx}
 
-            def with_held(ph):
-                model.phases = {**fit_phases, **ph}
+            def with_held(est):
+                model.phases = {**fit_phases, **{i: e.q_w0 for i, e in est.items() if e.identified}}
 
             if self.phase_["estimated"] and held_idx:
                 def rephase(pt):
-                    return {i: e.q_w0 for i, e in estimate_phases(model, pt, held_idx).items() if e.identified}
+                    return estimate_phases(model, pt, held_idx)
 
                 held_phases[None] = rephase(base_h.point(cal.x))
                 with_held(held_phases[None])
@@ -1016,10 +1016,7 @@ class Diagnosis:
                 # the final model's held-out phases from here on (the after figures and plots)
                 final_held = held_phases[self.selected_[0] if self.selected_ else None]
                 with_held(final_held)
-                self.phase_["heldout"] = {recs[i].name: None if i not in final_held else {
-                    "q_w0": final_held[i], "phase_pitch": ((final_held[i] - recs[i].params.default_wheel_offset())
-                                                           / pitch_angle(recs[i].params)) % 1.0}
-                    for i in held_idx}
+                self.phase_["heldout"] = {recs[i].name: e.to_dict() for i, e in final_held.items()}
             after = {}
             for i in held_idx:
                 after[recs[i].name] = rms(model.residuals([fh.point(self.final_.x)], [i])[0])

@@ -342,7 +342,7 @@ def _heldout_phase_md(d) -> str:
             "calibrated base and every refitted candidate), since a phase estimated at a model that lacks "
             "an effect is biased against the model that has it: an initial state estimated on the "
             "validation data, as output-error identification does. The final model's: " + ", ".join(
-                f"`{k}` " + ("not identified (default offset)" if v is None else f"{v['phase_pitch']:.3f} pitch")
+                f"`{k}` " + (f"{v['phase_pitch']:.3f} pitch" if v["identified"] else "not identified (default offset)")
                 for k, v in held.items()) + ".")
 
 
