@@ -19,6 +19,7 @@ import numpy as np
 
 from ..io import atomic_write_text, write_json
 from ..plots import _pyplot, save_png
+from .amplitude import AMPLITUDE_GRID
 from .candidates import CANDIDATES, FIXED_UNIDENTIFIED, primary_std
 from .data import FEATURE_DT, WINDOW_S
 from .diagnosis import AMPLITUDE_PROBES
@@ -491,7 +492,10 @@ def _report_md(d, js) -> str:
           "Screened linearly at the calibrated point, the best "
           f"{d.shortlist} refitted nonlinearly (base coefficients refitted too; a second start from the "
           f"uncalibrated coefficients when the first refit is not at the floor, a third with the effect "
-          f"at an amplitude probe when it still explains too little; the next {d.rivals} of the screening "
+          f"at an amplitude probe when it still explains too little, a fourth with the effect's amplitude "
+          f"searched over its range at the uncalibrated coefficients ({AMPLITUDE_GRID}-point scan, then a "
+          f"bounded Brent search) when the refits still leave more than {d.rule.max_remaining:g}x the floor; "
+          f"the next {d.rivals} of the screening "
           f"too when the provisional winner left the fit above {d.rule.rival_floor:g}x the floor). "
           f"Rule: {d.rule}.", "",
           _nominated_md(d), "", _probing_md(d), "",

@@ -1,0 +1,95 @@
+"""The amplitude search of a refit's second start (szdyn.diagnose.amplitude), on a stand-in model.
+
+The stand-in's cost in ``tau_lift`` has the shape measured on out-of-sample load_lift seed 20 at
+the uncalibrated coefficients: a slow descent, a valley about 0.01 N m wide, and a cliff just
+beyond it (the band stalls). A gradient start beside the valley cannot see it.
+"""
+import numpy as np
+import pytest
+
+from szdyn.diagnose.amplitude import AMPLITUDE_GRID, amplitude_search
+from szdyn.diagnose.candidates import CANDIDATES
+from szdyn.diagnose.fit import Hypothesis
+
+START = {"k_c": 0.05, "b_c": 0.0075, "k_imp": 4e12, "mu_s": 0.3, "mu_k": 0.25}
+CENTRE = 0.0893      # N m: not on the scan's grid (spacing 0.0375 N m over -0.3..0.3)
+
+
+class CliffValley:
+    """``residuals(points, which)`` like :class:`szdyn.diagnose.engine.FeatureModel`'s, with a
+    cost that depends only on one model change; counts the points asked for."""
+
+    def __init__(self, name="tau_lift", centre=CENTRE, width=0.004):
+        self.name, self.centre, self.width = name, centre, width
+        self.points = 0
+        self.seen_base = set()
+
+    def cost(self, v):
+        r = min(abs(v - self.centre) / self.width, 5.0)
+        return r + (50.0 if v > self.centre + 2.5 * self.width else 0.0)
+
+    def residuals(self, points, which):
+        self.points += len(points)
+        out = []
+        for mc, _ in points:
+            self.seen_base.add(tuple(round(mc[k], 12) for k in ("k_c", "b_c", "k_imp", "mu_s", "mu_k")))
+            out.append(np.full(10 * len(which), self.cost(mc.get(self.name, 0.0))))
+        return np.array(out)
+
+
+def _x(hyp, **values):
+    x = hyp.x_start()
+    for k, v in values.items():
+        x[hyp.names.index(k)] = v
+    return x
+
+
+def test_finds_a_narrow_valley_beside_a_cliff_from_far_away():
+    hyp = Hypothesis(START, CANDIDATES["load_lift"])
+    model = CliffValley()
+    x0 = _x(hyp, tau_lift=0.178)       # where load_lift seed 20's first refit ended
+    x, rss, n = amplitude_search(model, hyp, x0, [0, 1])
+    tau = hyp.candidate_values(x)["tau_lift"]
+    assert abs(tau - CENTRE) < 0.002, tau          # xatol is probe / 10 = 0.002 N m
+    np.testing.assert_array_equal(x[:hyp.n_base], x0[:hyp.n_base])   # base coefficients held
+    assert model.seen_base == {tuple(round(START[k], 12) for k in ("k_c", "b_c", "k_imp", "mu_s", "mu_k"))}
+    assert rss == pytest.approx(20 * model.cost(tau) ** 2)
+    assert n == model.points
+    assert AMPLITUDE_GRID + 1 < n <= AMPLITUDE_GRID + 1 + 12   # scan + start + at most ~10 refinements
+
+
+def test_refinement_improves_on_the_scan():
+    hyp = Hypothesis(START, CANDIDATES["load_lift"])
+    x0 = _x(hyp, tau_lift=-0.2)
+    _, rss_scan, n_scan = amplitude_search(CliffValley(), hyp, x0, [0], refine=0)
+    _, rss, _ = amplitude_search(CliffValley(), hyp, x0, [0])
+    assert n_scan == AMPLITUDE_GRID + 1
+    assert rss < 0.1 * rss_scan
+
+
+def test_keeps_the_start_when_nothing_fits_better():
+    hyp = Hypothesis(START, CANDIDATES["load_lift"])
+    x0 = _x(hyp, tau_lift=CENTRE)
+    x, rss, _ = amplitude_search(CliffValley(), hyp, x0, [0])
+    np.testing.assert_array_equal(x, hyp.inside(x0))
+    assert rss == 0.0
+
+
+def test_shape_parameters_and_the_base_model_are_left_alone():
+    hyp = Hypothesis(START, CANDIDATES["slider_stribeck"])
+    model = CliffValley(name="mu_st", centre=0.4, width=0.02)
+    x0 = _x(hyp, mu_st=1.2, v_st=0.7)
+    x, _, _ = amplitude_search(model, hyp, x0, [0])
+    v = hyp.candidate_values(x)
+    assert v["v_st"] == pytest.approx(0.7)         # a shape parameter: not searched
+    assert abs(v["mu_st"] - 0.4) < 0.01
+    base = Hypothesis(START)
+    xb, _, n = amplitude_search(CliffValley(), base, base.x_start(), [0])
+    assert n == 1
+    np.testing.assert_array_equal(xb, base.inside(base.x_start()))
+
+
+def test_too_few_scan_points_is_an_error():
+    hyp = Hypothesis(START, CANDIDATES["load_lift"])
+    with pytest.raises(ValueError, match="n_grid"):
+        amplitude_search(CliffValley(), hyp, hyp.x_start(), [0], n_grid=2)
