@@ -1,4 +1,4 @@
-"""The amplitude search of a refit's second start (szdyn.diagnose.amplitude), on a stand-in model.
+"""The amplitude search of a refit's fourth start (szdyn.diagnose.amplitude), on a stand-in model.
 
 The stand-in's cost in ``tau_lift`` has the shape measured on out-of-sample load_lift seed 20 at
 the uncalibrated coefficients: a slow descent, a valley about 0.01 N m wide, and a cliff just
@@ -7,9 +7,10 @@ beyond it (the band stalls). A gradient start beside the valley cannot see it.
 import numpy as np
 import pytest
 
-from szdyn.diagnose.amplitude import AMPLITUDE_GRID, amplitude_search
+from szdyn.diagnose.amplitude import AMPLITUDE_GRID, REFINE_EVALS, amplitude_search
+from szdyn.diagnose.diagnosis import Diagnosis
 from szdyn.diagnose.candidates import CANDIDATES
-from szdyn.diagnose.fit import Hypothesis
+from szdyn.diagnose.fit import Hypothesis, fit_hypothesis
 
 START = {"k_c": 0.05, "b_c": 0.0075, "k_imp": 4e12, "mu_s": 0.3, "mu_k": 0.25}
 CENTRE = 0.0893      # N m: not on the scan's grid (spacing 0.0375 N m over -0.3..0.3)
@@ -55,7 +56,7 @@ def test_finds_a_narrow_valley_beside_a_cliff_from_far_away():
     assert model.seen_base == {tuple(round(START[k], 12) for k in ("k_c", "b_c", "k_imp", "mu_s", "mu_k"))}
     assert rss == pytest.approx(20 * model.cost(tau) ** 2)
     assert n == model.points
-    assert AMPLITUDE_GRID + 1 < n <= AMPLITUDE_GRID + 1 + 12   # scan + start + at most ~10 refinements
+    assert AMPLITUDE_GRID + 1 < n <= AMPLITUDE_GRID + 1 + REFINE_EVALS   # start + scan + the Brent budget
 
 
 def test_refinement_improves_on_the_scan():
@@ -76,6 +77,8 @@ def test_keeps_the_start_when_nothing_fits_better():
 
 
 def test_shape_parameters_and_the_base_model_are_left_alone():
+    # slider_stribeck is the library's only candidate with a shape parameter; the diagnosis
+    # never searches it (it has its own probes), but the search must leave v_st alone anyway
     hyp = Hypothesis(START, CANDIDATES["slider_stribeck"])
     model = CliffValley(name="mu_st", centre=0.4, width=0.02)
     x0 = _x(hyp, mu_st=1.2, v_st=0.7)
@@ -93,3 +96,24 @@ def test_too_few_scan_points_is_an_error():
     hyp = Hypothesis(START, CANDIDATES["load_lift"])
     with pytest.raises(ValueError, match="n_grid"):
         amplitude_search(CliffValley(), hyp, hyp.x_start(), [0], n_grid=2)
+
+
+def test_fourth_start_only_where_the_refits_leave_the_mismatch_unexplained():
+    model = CliffValley()
+    d = Diagnosis(candidates=["load_lift"])
+    h = Hypothesis(START, CANDIDATES["load_lift"])
+    x_far = _x(h, tau_lift=0.178)                  # beyond the cliff: a flat cost, no gradient
+    best = fit_hypothesis(model, h, [0], x0=x_far, max_jac=2)
+    assert best.rmse_fit > 50.0
+    d.floor_ = 1.0                                 # the refit leaves 55 floors: searched
+    res = d._amplitude_start(model, h, best, x_far, [0])
+    assert res is not None and res.rmse_fit < 0.5
+    assert abs(res.values["tau_lift"] - CENTRE) < 0.002
+    d.floor_ = 20.0                                # within max_remaining (5) floors: not tried
+    assert d._amplitude_start(model, h, best, x_far, [0]) is None
+    d.floor_ = 1.0                                 # a candidate with its own probes: not tried
+    hs = Hypothesis(START, CANDIDATES["slider_stribeck"])
+    best_s = fit_hypothesis(CliffValley(name="mu_st", centre=0.4, width=0.02), hs, [0],
+                            x0=_x(hs, mu_st=1.4), max_jac=1)
+    assert best_s.rmse_fit > 5.0
+    assert d._amplitude_start(model, hs, best_s, _x(hs, mu_st=1.4), [0]) is None

@@ -57,7 +57,8 @@ def amplitude_search(model: FeatureModel, hyp: Hypothesis, x, which, *,
     n_grid : int
         Scan points per amplitude parameter (at least 3).
     refine : int
-        Evaluations of the Brent search (0: scan only).
+        Evaluations of the Brent search per parameter, at most (0: scan only; scipy's bounded
+        search makes at least 2, so 1 acts as 2).
 
     Returns
     -------

@@ -468,6 +468,32 @@ class Diagnosis:
         k = int(np.argmin(rss[1:]))
         return probes[k] if rss[1 + k] < rss[0] else None
 
+    def _amplitude_start(self, model, h: Hypothesis, best, x_nom, fit_idx):
+        """The fourth start of a refit: the effect's amplitude searched over its whole range at
+        the base coefficients of ``x_nom`` (the uncalibrated ones), then refitted from there.
+
+        Only while the best refit so far (``best``, a FitResult) leaves more than
+        ``rule.max_remaining`` noise floors (it does not explain the mismatch), and not for a
+        candidate with its own probes. Near the full-slip cliff the effect's valley at the
+        uncalibrated coefficients can be narrow and far from where the refits ended (load_lift
+        seed 20: 0.052 rad/s within 0.01 N m of tau_lift 0.09, the refits at 0.178 N m and 28x
+        the floor; :mod:`.amplitude`). The caller adopts it only if it ends better: a start that
+        fits better need not end better (friction_asymmetry seed 11).
+
+        Returns
+        -------
+        FitResult or None
+            The refit from the searched start; None when not tried.
+        """
+        if h.candidate is None or h.candidate.probes is not None \
+                or best.rmse_fit <= self.rule.max_remaining * self.floor_:
+            return None
+        x4, _, n_ev = amplitude_search(model, h, x_nom, fit_idx)
+        self.log(f"  fourth start for {h.candidate.id}: uncalibrated coefficients, amplitude searched "
+                 f"over its range ({n_ev} points): "
+                 + ", ".join(f"{k} = {v:.4g}" for k, v in h.candidate_values(x4).items()))
+        return fit_hypothesis(model, h, fit_idx, x0=x4, max_jac=self.max_jac, tol=FIT_TOL)
+
     def _unstall(self, model, h: Hypothesis, res, fit_idx, what: str = "calibration", max_jac: int | None = None):
         """Fit again from a fit's linear step while that step fits clearly better (at most
         ``unstall`` times; see the class docstring).
@@ -851,8 +877,8 @@ class Diagnosis:
                               mismatch=self.mismatch_, floor=self.floor_,
                               heldout_before=h0 if held_idx else None)
             def refit(cid):
-                """Refit base + candidate ``cid`` from its best start, with the second and third
-                starts when it misses (stores the result in ``refits_``)."""
+                """Refit base + candidate ``cid`` from its best start, with the second, third and
+                fourth starts when it misses (stores the result in ``refits_``)."""
                 s, cand = screened[cid], library[cid]
                 self.log(f"refitting base + {cand.id}")
                 h = Hypothesis(start, cand)
@@ -901,24 +927,13 @@ class Diagnosis:
                             res3.extra["restart"] = ("the uncalibrated coefficients with the effect at an "
                                                      "amplitude probe (third start)")
                             assess(cand, h, res3)
-                    # fourth start, only while the best refit still leaves more than
-                    # max_remaining floors (it does not explain the mismatch): the effect's
-                    # amplitude searched over its whole range at the uncalibrated coefficients
-                    # (.amplitude). Near the full-slip cliff its valley there can be narrow and
-                    # far from where the refits ended (load_lift seed 20: 0.052 rad/s within
-                    # 0.01 N m of tau_lift 0.09, the refits at 0.178 N m and 28x the floor).
-                    # Adopted only if it ends better; not for a candidate with its own probes.
+                    # fourth start (see _amplitude_start), adopted only if it ends better
                     best = self.refits_[cand.id]["result"]
-                    if cand.probes is None and best.rmse_fit > self.rule.max_remaining * self.floor_:
-                        x4, _, n_ev = amplitude_search(model, h, x_nom, fit_idx)
-                        self.log(f"  fourth start for {cand.id}: uncalibrated coefficients, amplitude searched "
-                                 f"over its range ({n_ev} points): "
-                                 + ", ".join(f"{k} = {v:.4g}" for k, v in h.candidate_values(x4).items()))
-                        res4 = fit_hypothesis(model, h, fit_idx, x0=x4, max_jac=self.max_jac, tol=FIT_TOL)
-                        if res4.rmse_fit < best.rmse_fit:
-                            res4.extra["restart"] = ("the uncalibrated coefficients with the effect's amplitude "
-                                                     "searched over its range (fourth start)")
-                            assess(cand, h, res4)
+                    res4 = self._amplitude_start(model, h, best, x_nom, fit_idx)
+                    if res4 is not None and res4.rmse_fit < best.rmse_fit:
+                        res4.extra["restart"] = ("the uncalibrated coefficients with the effect's amplitude "
+                                                 "searched over its range (fourth start)")
+                        assess(cand, h, res4)
                 # a refit left above the threshold may have stalled like a calibration
                 # (encoder_scale seed 17: slider_viscous, friction_drift and wheel_band_traction
                 # "converged after 1 Jacobian" at the calibrated 0.0614 rad/s, while their linear
