@@ -39,11 +39,10 @@ def amplitude_search(model: FeatureModel, hyp: Hypothesis, x, which, *,
                      n_grid: int = AMPLITUDE_GRID, refine: int = REFINE_EVALS):
     """Best values of the effect's amplitude parameters at fixed base coefficients.
 
-    Each amplitude parameter (a candidate parameter that is not a shape parameter, see
-    :attr:`.candidates.FitParam.screen_at`) in turn, the others at their current best: a scan of
-    ``n_grid`` points over its bounds (one parallel batch), then a bounded Brent search of at
-    most ``refine`` evaluations between the neighbours of the best point. ``x`` itself is kept
-    if nothing fits better.
+    Each amplitude parameter (:meth:`.fit.Hypothesis.amplitude_indices`) in turn, the others at
+    their current best: a scan of ``n_grid`` points over its bounds (one parallel batch), then a
+    bounded Brent search of at most ``refine`` evaluations between the neighbours of the best
+    point. ``x`` itself is kept if nothing fits better.
 
     Parameters
     ----------
@@ -71,16 +70,12 @@ def amplitude_search(model: FeatureModel, hyp: Hypothesis, x, which, *,
     """
     if n_grid < 3:
         raise ValueError(f"n_grid must be at least 3, got {n_grid}")
-    best_x = hyp.inside(x)
-    r = model.residuals([hyp.point(best_x)], which)[0]
-    best = [float(r @ r), best_x]
+    x = hyp.inside(x)
+    r = model.residuals([hyp.point(x)], which)[0]
+    best = [float(r @ r), x]     # updated in place by the scan and the Brent search's cost
     n_eval = 1
-    if hyp.candidate is None:
-        return best_x, best[0], n_eval
     lo, hi = hyp.bounds()
-    for j in range(hyp.n_base, len(lo)):
-        if hyp.params[j].screen_at:
-            continue
+    for j in hyp.amplitude_indices():
 
         def at(v, j=j):
             y = best[1].copy()

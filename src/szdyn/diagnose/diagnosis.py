@@ -395,9 +395,7 @@ class Diagnosis:
             return [h.inside(h.coordinates({**b, **e})) for e, b in h.candidate.probes(base, speed)]
         lo, hi = h.bounds()
         out = []
-        for j in range(h.n_base, len(lo)):
-            if h.params[j].screen_at:
-                continue
+        for j in h.amplitude_indices():
             for bound in (lo[j], hi[j]):
                 for f in AMPLITUDE_PROBES:
                     if bound != 0.0:

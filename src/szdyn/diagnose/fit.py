@@ -109,6 +109,11 @@ class Hypothesis:
             sc.update(s2)
         return mc, sc
 
+    def amplitude_indices(self) -> list:
+        """Indices (fit coordinates) of the candidate's amplitude parameters: every candidate
+        parameter but the shape ones (:attr:`.candidates.FitParam.screen_at`)."""
+        return [j for j in range(self.n_base, len(self.params)) if not self.params[j].screen_at]
+
     def candidate_values(self, x) -> dict:
         if self.candidate is None:
             return {}
