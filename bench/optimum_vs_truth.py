@@ -5,18 +5,29 @@ Usage::
     python bench/optimum_vs_truth.py CASE_DIR [CASE_DIR ...]
 
 ``CASE_DIR`` is a case of ``bench/diagnosis_grid.py`` (``data/`` with ``truth.json``,
-``diagnosis/diagnosis.json``) whose verdict names an effect. Prints the RMSE of the compared
-band speed (rad/s) of the selected effect's final model and of the truth (its perturbed
-coefficients and effect parameters; b_imp, which is not fitted, at the truth's and at the
-default), on the fit recordings, on the straight line between the two in fit coordinates (a
-quarter, half, three quarters), and per recording. A truth that fits the fit recordings better
-is a stalled fit; a barrier on the line with both ends alike is two valleys the fit recordings
-cannot tell apart (docs/DIAGNOSIS-DESIGN.md, "Splits that keep every load and direction").
+``diagnosis/diagnosis.json``). The hypothesis compared is the selected effect's; for a case
+that named none, the concealed effect's (the calibrated base, its effect off, against the
+truth), or the base model alone for a null case. Prints the RMSE of the compared band speed
+(rad/s) of the diagnosis's final model and of the truth (its perturbed coefficients and effect
+parameters; b_imp, which is not fitted, at the truth's and at the default) on the fit
+recordings, on the straight line between the two in fit coordinates (a quarter, half, three
+quarters), and per recording, three ways:
+
+* ``default_phase``: every run from the default wheel offset;
+* ``diagnosis_phases``: the fit recordings' wheel phases the diagnosis estimated at the
+  calibrated base (where it did; ``wheel_phase`` in diagnosis.json);
+* ``own_phases``: each point with the phases estimated at itself (:mod:`szdyn.diagnose.phase`).
+
+A truth that fits the fit recordings better is a stalled fit; a barrier on the line with both
+ends alike is two valleys the fit recordings cannot tell apart (docs/DIAGNOSIS-DESIGN.md,
+"Splits that keep every load and direction"); a truth that fits well only with its own phases
+is a valley the diagnosis's phases hide (docs/DIAGNOSIS-DESIGN.md, "The truth's narrow basin").
 This reads the answer: it is an analysis tool, never part of a diagnosis.
 """
 from __future__ import annotations
 
 import json
+import math
 import sys
 from pathlib import Path
 
@@ -27,36 +38,74 @@ from szdyn.diagnose.candidates import CANDIDATES  # noqa: E402
 from szdyn.diagnose.data import prepare  # noqa: E402
 from szdyn.diagnose.engine import FeatureModel, rms  # noqa: E402
 from szdyn.diagnose.fit import Hypothesis  # noqa: E402
+from szdyn.diagnose.phase import estimate_phases  # noqa: E402
 from szdyn.manifest import read_manifest  # noqa: E402
 
 BASE = ("k_c", "b_c", "k_imp", "mu_s", "mu_k")
+LINE = (0.25, 0.5, 0.75)
+
+
+def truth_coordinates(effect: str, truth: dict) -> dict:
+    """The concealed effect's values in the candidate's own fit parameters (truth.json names the
+    model's parameters; some candidates are fitted in other coordinates)."""
+    src = {**truth.get("effect_parameters", {}), **truth.get("effect_sensor", {})}
+    if effect == "drive_compliance":
+        return {"drive_compliance": 1.0 / src["k_drive"]}
+    if effect == "position_periodic":
+        a, phi = src["a_rev"], src["phi_rev"]
+        return {"a_rev_s": a * math.cos(phi), "a_rev_c": a * math.sin(phi)}
+    if effect == "encoder_scale":
+        return {"encoder_scale": src["encoder_scale_b"] - 1.0}
+    if effect == "encoder_delay":
+        return {"encoder_delay": src["encoder_delay_b"]}
+    return {p.name: src[p.name] for p in CANDIDATES[effect].params}
 
 
 def compare(case: Path) -> dict:
     d = json.loads((case / "diagnosis" / "diagnosis.json").read_text())
     truth = json.loads((case / "data" / "truth.json").read_text())
-    if not d["selected"]:
-        raise SystemExit(f"{case}: the diagnosis named no effect ({d['verdict']})")
     recs = prepare(read_manifest(case / "data" / "manifest.toml"))
-    hyp = Hypothesis({k: recs[0].params[k] for k in BASE}, CANDIDATES[d["selected"][0]])
-    final = d["final"]["values"]
+    effect = d["selected"][0] if d["selected"] else (None if truth["effect"] == "none" else truth["effect"])
+    start = {k: recs[0].params[k] for k in BASE}
+    hyp = Hypothesis(start, CANDIDATES[effect]) if effect else Hypothesis(start)
+    # the final model; a candidate not selected is off in it (its amplitude 0)
+    final = {**{p.name: 0.0 for p in (hyp.candidate.params if effect else ())}, **d["final"]["values"]}
     tv = {k: v["value"] for k, v in truth["perturbed"].items()}
-    eff = {**truth.get("effect_parameters", {}), **truth.get("effect_sensor", {})}
+    eff = truth_coordinates(effect, truth) if effect == truth["effect"] else {}
     at_truth = {**{k: tv[k] for k in BASE},
-                **{p.name: eff.get(p.name, final[p.name]) for p in hyp.candidate.params}}
+                **{p.name: eff.get(p.name, final[p.name]) for p in (hyp.candidate.params if effect else ())}}
     x0, x1 = hyp.coordinates(final), hyp.coordinates(at_truth)
     mc, sc = hyp.point(x1)
     points = {"final": hyp.point(x0), "truth": (mc, sc), "truth, its b_imp": ({**mc, "b_imp": tv["b_imp"]}, sc)}
-    points.update({f"line {a:g}": hyp.point(x0 + a * (x1 - x0)) for a in (0.25, 0.5, 0.75)})
+    points.update({f"line {a:g}": hyp.point(x0 + a * (x1 - x0)) for a in LINE})
     fit_idx = [i for i, r in enumerate(recs) if r.role == "fit"]
+    all_idx = list(range(len(recs)))
+    diag_ph = {i: e["q_w0"] for i in all_idx
+               for e in [d.get("wheel_phase", {}).get("recordings", {}).get(recs[i].name)]
+               if e and e.get("identified")}
+    out = {"case": case.name, "hypothesis": effect or "base", "verdict": d["verdict"],
+           "noise_floor": d["noise_floor"]}
     with FeatureModel(recs, workers=2) as model:
-        on_fit = dict(zip(points, (rms(r) for r in model.residuals(list(points.values()), fit_idx))))
-        per = {recs[i].name: {"role": recs[i].role,
-                              **{k: rms(model.residuals([points[k]], [i])[0]) for k in ("final", "truth")}}
-               for i in range(len(recs))}
-        every = {k: rms(model.residuals([points[k]], list(range(len(recs))))[0]) for k in ("final", "truth")}
-    return {"case": case.name, "noise_floor": d["noise_floor"], "fit_recordings": on_fit,
-            "all_recordings": every, "per_recording": per}
+        def measure(phases_of):
+            """RMSEs of every point on the fit recordings, and per recording for final and truth."""
+            on_fit, per = {}, {recs[i].name: {"role": recs[i].role} for i in all_idx}
+            for k, pt in points.items():
+                model.phases = phases_of(pt)
+                on_fit[k] = rms(model.residuals([pt], fit_idx)[0])
+                if k in ("final", "truth"):
+                    for i in all_idx:
+                        per[recs[i].name][k] = rms(model.residuals([pt], [i])[0])
+            return {"fit_recordings": on_fit, "per_recording": per}
+
+        def own(pt):
+            model.phases = {}
+            return {i: e.q_w0 for i, e in estimate_phases(model, pt, all_idx).items() if e.identified}
+
+        out["default_phase"] = measure(lambda pt: {})
+        if diag_ph:
+            out["diagnosis_phases"] = measure(lambda pt: diag_ph)
+        out["own_phases"] = measure(own)
+    return out
 
 
 if __name__ == "__main__":   # the model runs use worker processes

@@ -794,7 +794,7 @@ def test_diagnose_nomination_threshold_outside_0_1_is_a_clear_error(tmp_path, ca
     assert "--nominate-r2" in err and "Traceback" not in err
 
 
-@pytest.mark.parametrize("flag", ["--polish-jac", "--rivals", "--unstall"])
+@pytest.mark.parametrize("flag", ["--polish-jac", "--rivals", "--unstall", "--phase-steps"])
 def test_diagnose_negative_budget_is_a_clear_error(tmp_path, capsys, flag):
     m = tmp_path / "m.toml"
     m.write_text("")
@@ -959,6 +959,25 @@ def test_weighted_diagnosis_of_null_recordings_gives_none(null, tmp_path):
     assert d["weights"] == pytest.approx({k: d["noise_floor"] / math.hypot(v["sensor"], v["bump"])
                                           for k, v in per.items()})
     assert "**Weighted**" in (tmp_path / "w" / "report.md").read_text()
+
+
+def test_phase_profiled_steps_on_null_recordings_keep_none_and_are_reported(null, tmp_path):
+    """``--phase-steps``: the base calibration may only get better (each step is kept only if it
+    fits clearly better), the null still gives none, and the steps taken are reported."""
+    _, d0, out = null
+    man = out.parent / "data" / "manifest.toml"
+    assert run_main(["diagnose", str(man), "--out", str(tmp_path / "p"), "--phase-steps", "1", *SMALL]) == 0
+    d = json.loads((tmp_path / "p" / "diagnosis.json").read_text())
+    assert d["verdict"] == "none" and d["selected"] == []
+    assert d0["wheel_phase"]["estimated"] and "steps" not in d0["wheel_phase"]
+    steps = d["wheel_phase"]["steps"]
+    assert steps in (0, 1)
+    if steps:   # a step is kept only where it fits clearly better
+        assert d["fit"]["before"]["fit_rmse"] < d0["fit"]["before"]["fit_rmse"]
+    else:
+        assert d["fit"]["before"]["fit_rmse"] == pytest.approx(d0["fit"]["before"]["fit_rmse"])
+    said = "phase-profiled step(s) of the base" in (tmp_path / "p" / "report.md").read_text()
+    assert said == (steps == 1)
 
 
 def test_fallback_weighted_pass_on_null_recordings_keeps_none(null, tmp_path, monkeypatch):

@@ -48,6 +48,10 @@ def _build_parser():
     ap.add_argument("--no-phase", action="store_true",
                     help="start every model run from the default wheel offset instead of estimating each "
                     "recording's initial wheel phase (the impact bumps then count in the noise floor)")
+    ap.add_argument("--phase-steps", type=int, default=0,
+                    help="after the calibration with the wheel phases, at most this many Gauss-Newton steps of "
+                    "the base model whose trial points are each judged with the phases estimated there "
+                    "(default 0: off; measured on few cases, docs/DIAGNOSIS-DESIGN.md)")
     ap.add_argument("--weighting", choices=("fallback", "always", "off"), default="fallback",
                     help="weight each recording's residual by the common noise floor over its own, so that "
                     "recordings whose impact bumps do not reproduce count less: 'fallback' (default) only in "
@@ -86,6 +90,8 @@ def diagnose_command(argv) -> int:
         raise UserInputError(f"diagnose: --polish-jac must be >= 0, got {args.polish_jac}")
     if args.unstall < 0:
         raise UserInputError(f"diagnose: --unstall must be >= 0, got {args.unstall}")
+    if args.phase_steps < 0:
+        raise UserInputError(f"diagnose: --phase-steps must be >= 0, got {args.phase_steps}")
     if args.workers is not None and args.workers < 1:
         raise UserInputError(f"diagnose: --workers must be >= 1, got {args.workers}")
     cands = None
@@ -133,6 +139,7 @@ def diagnose_command(argv) -> int:
                   probe_screen=not args.no_probe_screen, max_jac=args.max_jac,
                   polish_jac=args.polish_jac, rivals=args.rivals, exchange_split=not args.no_exchange_split,
                   weighting=args.weighting, unstall=args.unstall, fit_phase=not args.no_phase,
+                  phase_steps=args.phase_steps,
                   workers=args.workers,
                   log=log, progress=progress).fit(recs)
     js = write_report(d, args.out)

@@ -64,6 +64,10 @@ __all__ = ["FIT_TOL", "FLOOR_SPREAD", "WEIGHTINGS", "Diagnosis", "probe_addition
 #: effect switched on (see :meth:`Diagnosis._starts`).
 AMPLITUDE_PROBES = (0.25, 0.5)
 
+#: Fractions of the linearised step tried by a phase-profiled step (:meth:`Diagnosis._phase_step`);
+#: beyond 1 because at fixed phases the fit's own steps were cut short.
+PHASE_STEP_FRACTIONS = (0.25, 0.5, 1.0, 2.0)
+
 #: Relative ``ftol``/``xtol`` of every nonlinear fit: tighter than a typical 1e-3 so that the
 #: Jacobian budgets, not a small step on the rough (impact-bump) cost, end the fits. Not a cure
 #: for stalls: the friction_drift seed-11 refit reported convergence after 2 Jacobians at
@@ -173,6 +177,11 @@ class Diagnosis:
         fits within :data:`.phase.PHASE_GATE` of the noise floor, and calibrate again with it
         (:mod:`.phase`); the noise floor's bump part is then the phase's uncertainty instead of
         a quarter pitch. False: every run starts from the default offset.
+    phase_steps : int
+        After that calibration, at most this many *phase-profiled* Gauss-Newton steps of the
+        base model (:meth:`_phase_step`): each trial point along the step is judged with the fit
+        recordings' phases estimated at itself. Default 0 (off): measured on three cases only
+        (docs/DIAGNOSIS-DESIGN.md, "The truth's narrow basin").
     workers : int, optional
         Processes for the model runs (default: CPU count).
     log : callable(str), optional
@@ -293,7 +302,7 @@ class Diagnosis:
                  nominate_r2: float | None = 0.3, probe_screen: bool = True, max_jac: int = 4,
                  polish_jac: int | None = None, rivals: int = 2, exchange_split: bool = True,
                  weighting: str = "fallback", unstall: int = 2, fit_phase: bool = True,
-                 workers: int | None = None, log=None, progress=None):
+                 phase_steps: int = 0, workers: int | None = None, log=None, progress=None):
         self.candidates = candidates
         self.rule = rule or SelectionRule()
         self.shortlist = shortlist
@@ -306,6 +315,9 @@ class Diagnosis:
         self.weighting = weighting
         self.unstall = unstall
         self.fit_phase = fit_phase
+        if isinstance(phase_steps, bool) or not isinstance(phase_steps, int) or phase_steps < 0:
+            raise ValueError(f"phase_steps must be an integer >= 0, got {phase_steps!r}")
+        self.phase_steps = phase_steps
         self.workers = workers
         self.log = log or (lambda msg: None)
         self.progress = progress
@@ -491,6 +503,60 @@ class Diagnosis:
                  f"over its range ({n_ev} points): "
                  + ", ".join(f"{k} = {v:.4g}" for k, v in h.candidate_values(x4).items()))
         return fit_hypothesis(model, h, fit_idx, x0=x4, max_jac=self.max_jac, tol=FIT_TOL)
+
+    def _phase_step(self, model, h: Hypothesis, res, fit_idx, est: dict):
+        """Phase-profiled Gauss-Newton steps of a fit (the base calibration), at most
+        ``phase_steps``.
+
+        The wheel phases are nuisance parameters of every run, estimated once at the first
+        calibration. A fit with them held cannot leave its valley: a step of the coefficients
+        moves the impact bumps, so at the old phases every longer step fits worse, while at the
+        phases that fit the new point it may fit much better. Here the full linearised step from
+        the fit's end is tried at :data:`PHASE_STEP_FRACTIONS` of its length, each trial point
+        with the fit recordings' phases estimated at itself (the phases profiled out, as in
+        variable projection); the best, if clearly better (``rule.min_dbic``), becomes the new
+        start with its phases, and the fit continues from there. Measured on null 32 (the
+        calibration at 3.2x the floor, the truth at 0.9x with its own phases): one step to
+        0.0063 rad/s, the next 0.0060 (1.0x the floor); docs/DIAGNOSIS-DESIGN.md.
+
+        Parameters
+        ----------
+        res : FitResult
+            The fit (of ``h`` on ``fit_idx``, with ``model.phases``).
+        est : dict
+            Recording index -> :class:`.phase.PhaseEstimate`; updated in place for the fit
+            recordings whose phases are re-estimated.
+
+        Returns
+        -------
+        FitResult
+            ``res`` when no step fits clearly better, else the last fit; ``model.phases`` then
+            holds the new phases of the fit recordings (identified ones).
+        """
+        for k in range(self.phase_steps):
+            f0 = model.residuals([h.point(res.x)], fit_idx)[0]
+            d = np.linalg.lstsq(res.J, f0, rcond=None)[0]
+            saved, best = dict(model.phases), None
+            for a in PHASE_STEP_FRACTIONS:
+                z = h.inside(res.x + a * d)
+                e = estimate_phases(model, h.point(z), fit_idx)
+                model.phases = {**saved, **{i: q.q_w0 for i, q in e.items() if q.identified}}
+                r = model.residuals([h.point(z)], fit_idx)[0]
+                if best is None or r @ r < best[0]:
+                    best = (float(r @ r), a, z, e, dict(model.phases))
+                model.phases = saved
+            rss, a, z, e, phases = best
+            if self.rule.indistinguishable(rss_selected=rss, rss_other=res.rss_fit, n_fit=res.n_fit):
+                break   # (also when it fits worse)
+            self.log(f"  phase-profiled step {k + 1} ({a:g} of the linear step, phases estimated there): "
+                     f"{math.sqrt(rss / res.n_fit):.4g} rad/s (was {res.rmse_fit:.4g}); fitting on from there")
+            model.phases = phases
+            est.update({i: q for i, q in e.items() if q.identified})
+            nxt = fit_hypothesis(model, h, fit_idx, x0=z, max_jac=2 * self.max_jac, tol=FIT_TOL)
+            nxt.extra.update(njac=nxt.extra["njac"] + res.extra["njac"], phase_steps=k + 1)
+            self.log(f"  calibration: fit RMSE {nxt.rmse_fit:.4g} rad/s")
+            res = nxt
+        return res
 
     def _unstall(self, model, h: Hypothesis, res, fit_idx, what: str = "calibration", max_jac: int | None = None):
         """Fit again from a fit's linear step while that step fits clearly better (at most
@@ -744,6 +810,11 @@ class Diagnosis:
                 lap("phase")
                 if any(i in model.phases for i in fit_idx):
                     cal = recalibrate(cal, "with the wheel phases", "calibrate_phase")
+                    if self.phase_steps > 0:
+                        cal = self.calibrated_ = self._phase_step(model, base_h, cal, fit_idx, est)
+                        self.phase_["steps"] = cal.extra.get("phase_steps", 0)
+                        self.phases_ = {recs[i].name: e.to_dict() for i, e in est.items()}
+                        lap("calibrate_phase_step")
                     base_mc, _ = base_h.point(cal.x)
                 own = self._noise_floor(model, recs, fit_idx, all_idx, base_mc)
                 lap("noise_floor")

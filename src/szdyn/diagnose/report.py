@@ -102,7 +102,9 @@ def _status(res) -> str:
          if res.extra.get("ablation_of") else "") + \
         (", continued once" if res.extra.get("continued") else "") + \
         (f", restarted {res.extra['unstalled']}x from its linear step (a stall)"
-         if res.extra.get("unstalled") else "")
+         if res.extra.get("unstalled") else "") + \
+        (f", {res.extra['phase_steps']} phase-profiled step(s) (--phase-steps)"
+         if res.extra.get("phase_steps") else "")
     return f"{how} after {res.extra['njac']} Jacobians{more}"
 
 
@@ -329,6 +331,9 @@ def _phase_md(d) -> list:
                 f"{_f(v['median_rmse'], '.3g')}, model change {_f(v['model_spread'], '.3g')} rad/s"
                 + ("" if v["identified"] else ", not identified: default offset") + ")"
                 for k, v in d.phases_.items())
+            + (f". Then {d.phase_['steps']} phase-profiled step(s) of the base "
+               "(`--phase-steps`) estimated them again at the point each step went to; these are the "
+               "phases of the last" if d.phase_.get("steps") else "")
             + f". On the {len(ok)} identified, the floor's bump part is the phase's uncertainty "
             f"({PHASE_UNCERTAINTY:g} pitch) instead of a quarter pitch."
             + _heldout_phase_md(d), ""]

@@ -1,0 +1,107 @@
+"""The phase-profiled step of the base calibration (Diagnosis._phase_step), on a stand-in model.
+
+The stand-in has what null 32 showed: each recording's impact bumps follow the wheel phase and
+shift with a coefficient (here k_c), and the rest of the residual fixes that coefficient. At the
+phases estimated at the calibration every step of k_c towards the truth misaligns the bumps and
+fits worse; with the phases estimated at the trial point itself it fits at the truth.
+"""
+import math
+
+import numpy as np
+import pytest
+
+from szdyn.diagnose.diagnosis import Diagnosis
+from szdyn.diagnose.fit import FitResult, Hypothesis
+from szdyn.diagnose.phase import estimate_phases
+
+START = {"k_c": 0.05, "b_c": 0.0075, "k_imp": 4e12, "mu_s": 0.3, "mu_k": 0.25}
+N_CIRCLES = 100
+PITCH = 2 * math.pi / N_CIRCLES
+K_TRUE = 0.056                      # N m/rad, 12 % above the start
+SHIFT = 0.37 * PITCH / 0.006        # wheel angle the bumps move per N m/rad of k_c
+TRUE_PHASE = (0.21 * PITCH, 0.63 * PITCH)
+BUMP = 0.1                          # rad/s: bump amplitude
+SMOOTH = 0.5                        # rad/s per relative error of k_c: the smooth part
+
+
+class _Params:
+    n_circles = N_CIRCLES
+
+    def default_wheel_offset(self):
+        return 0.0
+
+
+class _Rec:
+    params = _Params()
+
+
+class BumpShift:
+    """``residuals(points, which)`` like FeatureModel's: per recording 10 samples of bumps
+    (amplitude BUMP, aligned where ``q_w0 - SHIFT k_c`` is the recording's phase) and 10 of a
+    smooth part ``SMOOTH (k_c - K_TRUE) / K_TRUE``."""
+
+    def __init__(self):
+        self.recordings = [_Rec(), _Rec()]
+        self.phases = {}
+
+    def _one(self, i, mc):
+        q = mc.get("q_w0", self.phases.get(i, 0.0))
+        k = mc["k_c"]
+        ph = TRUE_PHASE[i] + SHIFT * (k - K_TRUE)
+        bumps = BUMP * np.sin(math.pi * (q - ph) / PITCH) * np.ones(10)
+        return np.concatenate([bumps, np.full(10, SMOOTH * (k - K_TRUE) / K_TRUE)])
+
+    def residuals(self, points, which):
+        return np.array([np.concatenate([self._one(i, mc) for i in which]) for mc, _ in points])
+
+
+def _calibrated(model, h):
+    """The calibration as the diagnosis leaves it: at the start, phases estimated there, and a
+    Jacobian that sees the smooth part only (a finite difference across the rippled bumps)."""
+    x = h.x_start()
+    est = estimate_phases(model, h.point(x), [0, 1])
+    model.phases = {i: e.q_w0 for i, e in est.items()}
+    r = model.residuals([h.point(x)], [0, 1])[0]
+    J = np.zeros((r.size, x.size))
+    for blk in (0, 1):                              # d speed / d log k_c of the smooth part
+        J[20 * blk + 10:20 * blk + 20, 0] = -SMOOTH * START["k_c"] / K_TRUE
+    rss = float(r @ r)
+    res = FitResult(hypothesis=h, x=x, values=h.values(x), std={}, corr=np.eye(x.size), rss_fit=rss,
+                    n_fit=r.size, rmse_fit=math.sqrt(rss / r.size), nfev=1, J=J, status="converged",
+                    extra={"njac": 1})
+    return res, est
+
+
+def test_profiled_step_reaches_the_truth_the_held_phases_hide():
+    model, h = BumpShift(), Hypothesis(START)
+    res, est = _calibrated(model, h)
+    # the held phases hide it: at the truth's k_c they misalign the bumps
+    z = h.coordinates({**START, "k_c": K_TRUE})
+    r = model.residuals([h.point(z)], [0, 1])[0]
+    assert r @ r > 2 * res.rss_fit
+    out = Diagnosis(phase_steps=2)._phase_step(model, h, res, [0, 1], est)
+    assert out is not res and out.extra["phase_steps"] >= 1
+    assert out.values["k_c"] == pytest.approx(K_TRUE, rel=0.01)
+    assert out.rmse_fit < 0.1 * res.rmse_fit
+    for i in (0, 1):    # the phases that fit the new point, kept for the later runs
+        assert abs(((model.phases[i] - TRUE_PHASE[i]) / PITCH + 0.5) % 1.0 - 0.5) < 1 / 32
+        assert est[i].q_w0 == model.phases[i]
+
+
+def test_no_step_when_off_or_nothing_better():
+    model, h = BumpShift(), Hypothesis(START)
+    res, est = _calibrated(model, h)
+    before = dict(model.phases)
+    assert Diagnosis(phase_steps=0)._phase_step(model, h, res, [0, 1], est) is res
+    assert model.phases == before
+    # at the truth already: no step fits clearly better, phases untouched
+    res_t, est_t = _calibrated(model, Hypothesis({**START, "k_c": K_TRUE}))
+    before = dict(model.phases)
+    assert Diagnosis(phase_steps=2)._phase_step(model, res_t.hypothesis, res_t, [0, 1], est_t) is res_t
+    assert model.phases == before
+
+
+@pytest.mark.parametrize("bad", [-1, 1.5, True, "2"])
+def test_phase_steps_must_be_a_count(bad):
+    with pytest.raises(ValueError, match="phase_steps"):
+        Diagnosis(phase_steps=bad)
