@@ -181,7 +181,8 @@ class Diagnosis:
         After that calibration, at most this many *phase-profiled* Gauss-Newton steps of the
         base model (:meth:`_phase_step`): each trial point along the step is judged with the fit
         recordings' phases estimated at itself. Default 0 (off): measured on three cases only
-        (docs/DIAGNOSIS-DESIGN.md, "The truth's narrow basin").
+        (null 32, drive_compliance and encoder_delay 21; docs/DIAGNOSIS-DESIGN.md, "The truth's
+        narrow basin").
     workers : int, optional
         Processes for the model runs (default: CPU count).
     log : callable(str), optional
