@@ -38,7 +38,7 @@ from szdyn.diagnose.candidates import CANDIDATES  # noqa: E402
 from szdyn.diagnose.data import prepare  # noqa: E402
 from szdyn.diagnose.engine import FeatureModel, rms  # noqa: E402
 from szdyn.diagnose.fit import Hypothesis  # noqa: E402
-from szdyn.diagnose.phase import estimate_phases  # noqa: E402
+from szdyn.diagnose.phase import estimate_phases, identified_phases  # noqa: E402
 from szdyn.manifest import read_manifest  # noqa: E402
 
 BASE = ("k_c", "b_c", "k_imp", "mu_s", "mu_k")
@@ -99,7 +99,7 @@ def compare(case: Path) -> dict:
 
         def own(pt):
             model.phases = {}
-            return {i: e.q_w0 for i, e in estimate_phases(model, pt, all_idx).items() if e.identified}
+            return identified_phases(estimate_phases(model, pt, all_idx))
 
         out["default_phase"] = measure(lambda pt: {})
         if diag_ph:

@@ -51,10 +51,10 @@ from .amplitude import amplitude_search
 from .candidates import CANDIDATES, Candidate
 from .detect import detectable_amplitude
 from .engine import FeatureModel, rms
-from .fit import Hypothesis, fit_hypothesis, jacobian, linear_step
+from .fit import Hypothesis, fit_hypothesis, gauss_newton_step, jacobian, linear_step
 from .locate import follows, locate
 from .noise import bump_noise, sensor_noise, torque_bump_noise, torque_sensor_noise
-from .phase import PHASE_GATE, estimate_phases
+from .phase import PHASE_GATE, estimate_phases, identified_phases
 from .selection import SelectionRule, decide, nominate, rivals, screen
 from .split import exchange_pairs, exchanged, hidden_conditions
 
@@ -535,23 +535,22 @@ class Diagnosis:
             holds the new phases of the fit recordings (identified ones).
         """
         for k in range(self.phase_steps):
-            f0 = model.residuals([h.point(res.x)], fit_idx)[0]
-            d = np.linalg.lstsq(res.J, f0, rcond=None)[0]
+            d = gauss_newton_step(model, h, res, fit_idx)
             saved, best = dict(model.phases), None
             for a in PHASE_STEP_FRACTIONS:
                 z = h.inside(res.x + a * d)
                 e = estimate_phases(model, h.point(z), fit_idx)
-                model.phases = {**saved, **{i: q.q_w0 for i, q in e.items() if q.identified}}
+                model.phases = {**saved, **identified_phases(e)}
                 r = model.residuals([h.point(z)], fit_idx)[0]
                 if best is None or r @ r < best[0]:
-                    best = (float(r @ r), a, z, e, dict(model.phases))
+                    best = (float(r @ r), a, z, e)
                 model.phases = saved
-            rss, a, z, e, phases = best
+            rss, a, z, e = best
             if self.rule.indistinguishable(rss_selected=rss, rss_other=res.rss_fit, n_fit=res.n_fit):
                 break   # (also when it fits worse)
             self.log(f"  phase-profiled step {k + 1} ({a:g} of the linear step, phases estimated there): "
                      f"{math.sqrt(rss / res.n_fit):.4g} rad/s (was {res.rmse_fit:.4g}); fitting on from there")
-            model.phases = phases
+            model.phases = {**saved, **identified_phases(e)}
             est.update({i: q for i, q in e.items() if q.identified})
             nxt = fit_hypothesis(model, h, fit_idx, x0=z, max_jac=2 * self.max_jac, tol=FIT_TOL)
             nxt.extra.update(njac=nxt.extra["njac"] + res.extra["njac"], phase_steps=k + 1)
@@ -802,8 +801,7 @@ class Diagnosis:
                          f"{PHASE_GATE:g}x: wheel phases not estimated (the missing effect would bias them)")
             elif self.fit_phase:
                 est = estimate_phases(model, base_mc, all_idx)
-                model.phases = {i: e.q_w0 for i, e in est.items() if e.identified}
-                self.phases_ = {recs[i].name: e.to_dict() for i, e in est.items()}
+                model.phases = identified_phases(est)
                 self.phase_["estimated"] = True
                 self.log(f"wheel phase identified on {len(model.phases)} of {len(all_idx)} recording(s): "
                          + ", ".join(f"{recs[i].name} {e.phase:.3f} pitch ({e.rmse:.3g} against {e.median_rmse:.3g})"
@@ -814,9 +812,10 @@ class Diagnosis:
                     if self.phase_steps > 0:
                         cal = self.calibrated_ = self._phase_step(model, base_h, cal, fit_idx, est)
                         self.phase_["steps"] = cal.extra.get("phase_steps", 0)
-                        self.phases_ = {recs[i].name: e.to_dict() for i, e in est.items()}
                         lap("calibrate_phase_step")
                     base_mc, _ = base_h.point(cal.x)
+                # (after the phase-profiled steps, which update ``est`` in place)
+                self.phases_ = {recs[i].name: e.to_dict() for i, e in est.items()}
                 own = self._noise_floor(model, recs, fit_idx, all_idx, base_mc)
                 lap("noise_floor")
             self.weighted_ = weighted
@@ -1090,7 +1089,7 @@ class Diagnosis:
             fit_phases = {i: q for i, q in model.phases.items() if i not in held_idx}
 
             def with_held(est):
-                model.phases = {**fit_phases, **{i: e.q_w0 for i, e in est.items() if e.identified}}
+                model.phases = {**fit_phases, **identified_phases(est)}
 
             if self.phase_["estimated"] and held_idx:
                 def rephase(pt):

@@ -290,6 +290,14 @@ def fit_hypothesis(model: FeatureModel, hyp: Hypothesis, which, *, x0=None, max_
                             "restart": previous.extra.get("restart") if previous else None})
 
 
+def gauss_newton_step(model: FeatureModel, hyp: Hypothesis, res: FitResult, which) -> np.ndarray:
+    """The full linearised (Gauss-Newton) step from the end of a fit, shape (p,), in fit
+    coordinates: ``residual(x + d) ~ f0 - J d`` with the fit's Jacobian ``res.J`` (d model speed /
+    dx) and its residual at ``res.x`` on ``which`` (cached: the fit evaluated it)."""
+    f0 = model.residuals([hyp.point(res.x)], which)[0]
+    return np.linalg.lstsq(res.J, f0, rcond=None)[0]
+
+
 def linear_step(model: FeatureModel, hyp: Hypothesis, res: FitResult, which,
                 fractions=(1.0, 0.5)) -> tuple[np.ndarray, float]:
     """The Gauss-Newton step from the end of a fit, tried with model runs (one parallel batch).
@@ -317,9 +325,7 @@ def linear_step(model: FeatureModel, hyp: Hypothesis, res: FitResult, which,
     rss : float
         Its residual sum of squares ((rad/s)^2).
     """
-    f0 = model.residuals([hyp.point(res.x)], which)[0]   # cached: the fit evaluated it
-    # residual(x + d) ~ f0 - J d (J is d model speed / dx)
-    d = np.linalg.lstsq(res.J, f0, rcond=None)[0]
+    d = gauss_newton_step(model, hyp, res, which)
     xs = [hyp.inside(res.x + a * d) for a in fractions]
     R = model.residuals([hyp.point(x) for x in xs], which)
     rss = [float(r @ r) for r in R]

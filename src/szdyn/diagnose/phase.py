@@ -26,7 +26,7 @@ import numpy as np
 
 from .engine import rms
 
-__all__ = ["PhaseEstimate", "estimate_phases", "pitch_angle", "N_SCAN", "PHASE_UNCERTAINTY",
+__all__ = ["PhaseEstimate", "estimate_phases", "identified_phases", "pitch_angle", "N_SCAN", "PHASE_UNCERTAINTY",
            "IDENTIFIED_SHARE", "PHASE_GATE"]
 
 #: Phases scanned per circle pitch (then refined twice by halving the step around the best).
@@ -88,6 +88,12 @@ class PhaseEstimate:
 def pitch_angle(p) -> float:
     """One circle pitch as a wheel angle (rad): the period of the initial phase."""
     return 2.0 * math.pi / p.n_circles
+
+
+def identified_phases(est: dict) -> dict:
+    """Recording index -> initial wheel angle (rad) of the identified estimates of ``est``
+    (index -> :class:`PhaseEstimate`): what ``FeatureModel.phases`` takes."""
+    return {i: e.q_w0 for i, e in est.items() if e.identified}
 
 
 def estimate_phases(model, base_changes: dict, which, *, n_scan: int = N_SCAN,
