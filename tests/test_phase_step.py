@@ -10,6 +10,7 @@ import math
 import numpy as np
 import pytest
 
+from szdyn.diagnose.candidates import CANDIDATES
 from szdyn.diagnose.diagnosis import Diagnosis
 from szdyn.diagnose.fit import FitResult, Hypothesis
 from szdyn.diagnose.phase import estimate_phases
@@ -79,13 +80,43 @@ def test_profiled_step_reaches_the_truth_the_held_phases_hide():
     z = h.coordinates({**START, "k_c": K_TRUE})
     r = model.residuals([h.point(z)], [0, 1])[0]
     assert r @ r > 2 * res.rss_fit
+    held = dict(model.phases)
     out = Diagnosis(phase_steps=2)._phase_step(model, h, res, [0, 1], est)
     assert out is not res and out.extra["phase_steps"] >= 1
     assert out.values["k_c"] == pytest.approx(K_TRUE, rel=0.01)
     assert out.rmse_fit < 0.1 * res.rmse_fit
-    for i in (0, 1):    # the phases that fit the new point, kept for the later runs
-        assert abs(((model.phases[i] - TRUE_PHASE[i]) / PITCH + 0.5) % 1.0 - 0.5) < 1 / 32
-        assert est[i].q_w0 == model.phases[i]
+    assert model.phases == held      # the caller decides whose phases the model holds
+    fit_phases = out.extra["fit_phases"]
+    for i in (0, 1):    # the phases that fit the new point, kept with the result
+        assert abs(((fit_phases[i] - TRUE_PHASE[i]) / PITCH + 0.5) % 1.0 - 0.5) < 1 / 32
+        assert est[i].q_w0 == fit_phases[i]
+    # run with them, the result's own fit is reproduced; with the held ones it is not
+    with Diagnosis._fit_phases(model, out):
+        r = model.residuals([h.point(out.x)], [0, 1])[0]
+    assert math.sqrt(r @ r / r.size) == pytest.approx(out.rmse_fit)
+    assert model.phases == held
+    r = model.residuals([h.point(out.x)], [0, 1])[0]
+    assert math.sqrt(r @ r / r.size) > 2 * out.rmse_fit
+
+
+def test_profiled_step_of_a_candidate_refit_keeps_its_record():
+    """A candidate's refit gets the same step (the effect's column is flat here): the base
+    coefficients reach the truth, the refit's own record (start, restart) is kept."""
+    model, h0 = BumpShift(), Hypothesis(START)
+    res0, _ = _calibrated(model, h0)
+    h = Hypothesis(START, CANDIDATES["slider_viscous"])
+    x = np.concatenate([res0.x, h.x_start()[h.n_base:]])
+    J = np.zeros((res0.J.shape[0], x.size))
+    J[:, :h.n_base] = res0.J
+    res = FitResult(hypothesis=h, x=x, values=h.values(x), std={}, corr=np.eye(x.size), rss_fit=res0.rss_fit,
+                    n_fit=res0.n_fit, rmse_fit=res0.rmse_fit, nfev=1, J=J, status="converged",
+                    extra={"njac": 3, "start": "linear step"})
+    out = Diagnosis(phase_steps=1)._phase_step(model, h, res, [0, 1], what="refit of slider_viscous",
+                                               max_jac=2)
+    assert out.hypothesis is h and out.extra["phase_steps"] == 1
+    assert out.extra["start"] == "linear step" and out.extra["njac"] > 3
+    assert out.values["k_c"] == pytest.approx(K_TRUE, rel=0.01)
+    assert set(out.extra["fit_phases"]) == {0, 1}
 
 
 def test_no_step_when_off_or_nothing_better():

@@ -50,8 +50,9 @@ def _build_parser():
                     "recording's initial wheel phase (the impact bumps then count in the noise floor)")
     ap.add_argument("--phase-steps", type=int, default=0,
                     help="after the calibration with the wheel phases, at most this many Gauss-Newton steps of "
-                    "the base model whose trial points are each judged with the phases estimated there "
-                    "(default 0: off; measured on few cases, docs/DIAGNOSIS-DESIGN.md)")
+                    "the base model, and of each candidate's refit left above the threshold, whose trial points are "
+                    "each judged with the phases estimated there (default 0: off; measured on few cases, "
+                    "docs/DIAGNOSIS-DESIGN.md)")
     ap.add_argument("--weighting", choices=("fallback", "always", "off"), default="fallback",
                     help="weight each recording's residual by the common noise floor over its own, so that "
                     "recordings whose impact bumps do not reproduce count less: 'fallback' (default) only in "

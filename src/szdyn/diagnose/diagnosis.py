@@ -44,6 +44,7 @@ from __future__ import annotations
 import itertools
 import math
 import time
+from contextlib import contextmanager
 
 import numpy as np
 
@@ -180,9 +181,10 @@ class Diagnosis:
     phase_steps : int
         After that calibration, at most this many *phase-profiled* Gauss-Newton steps of the
         base model (:meth:`_phase_step`): each trial point along the step is judged with the fit
-        recordings' phases estimated at itself. Default 0 (off): measured on three cases only
-        (null 32, drive_compliance and encoder_delay 21; docs/DIAGNOSIS-DESIGN.md, "The truth's
-        narrow basin").
+        recordings' phases estimated at itself. Every candidate's refit still above the
+        threshold is offered as many, and keeps the phases it ends with (``extra["fit_phases"]``);
+        the ablation refits the base with the leader's. Default 0 (off): measured on few cases
+        (docs/DIAGNOSIS-DESIGN.md, "The truth's narrow basin").
     workers : int, optional
         Processes for the model runs (default: CPU count).
     log : callable(str), optional
@@ -505,9 +507,10 @@ class Diagnosis:
                  + ", ".join(f"{k} = {v:.4g}" for k, v in h.candidate_values(x4).items()))
         return fit_hypothesis(model, h, fit_idx, x0=x4, max_jac=self.max_jac, tol=FIT_TOL)
 
-    def _phase_step(self, model, h: Hypothesis, res, fit_idx, est: dict):
-        """Phase-profiled Gauss-Newton steps of a fit (the base calibration), at most
-        ``phase_steps``.
+    def _phase_step(self, model, h: Hypothesis, res, fit_idx, est: dict | None = None, *,
+                    what: str = "calibration", max_jac: int | None = None):
+        """Phase-profiled Gauss-Newton steps of a fit (the base calibration, or a candidate's
+        refit), at most ``phase_steps``.
 
         The wheel phases are nuisance parameters of every run, estimated once at the first
         calibration. A fit with them held cannot leave its valley: a step of the coefficients
@@ -523,40 +526,67 @@ class Diagnosis:
         Parameters
         ----------
         res : FitResult
-            The fit (of ``h`` on ``fit_idx``, with ``model.phases``).
-        est : dict
+            The fit (of ``h`` on ``fit_idx``, with the phases ``model.phases`` holds now).
+        est : dict, optional
             Recording index -> :class:`.phase.PhaseEstimate`; updated in place for the fit
-            recordings whose phases are re-estimated.
+            recordings whose phases are re-estimated (the base's record).
+        what : str
+            The fit's name in the log.
+        max_jac : int, optional
+            Jacobians of each continued fit (default ``2 max_jac``, the calibration's budget).
 
         Returns
         -------
         FitResult
-            ``res`` when no step fits clearly better, else the last fit; ``model.phases`` then
-            holds the new phases of the fit recordings (identified ones).
+            ``res`` when no step fits clearly better, else the last fit, whose
+            ``extra["fit_phases"]`` (recording index -> initial wheel angle, rad) holds the fit
+            recordings' phases it was fitted with. ``model.phases`` is left as it was: the
+            caller decides whose phases it holds (:meth:`_fit_phases`).
         """
-        for k in range(self.phase_steps):
-            d = gauss_newton_step(model, h, res, fit_idx)
-            saved, best = dict(model.phases), None
-            for a in PHASE_STEP_FRACTIONS:
-                z = h.inside(res.x + a * d)
-                e = estimate_phases(model, h.point(z), fit_idx)
+        max_jac = 2 * self.max_jac if max_jac is None else max_jac
+        entry = dict(model.phases)
+        try:
+            for k in range(self.phase_steps):
+                d = gauss_newton_step(model, h, res, fit_idx)
+                saved, best = dict(model.phases), None
+                for a in PHASE_STEP_FRACTIONS:
+                    z = h.inside(res.x + a * d)
+                    e = estimate_phases(model, h.point(z), fit_idx)
+                    model.phases = {**saved, **identified_phases(e)}
+                    r = model.residuals([h.point(z)], fit_idx)[0]
+                    if best is None or r @ r < best[0]:
+                        best = (float(r @ r), a, z, e)
+                    model.phases = saved
+                rss, a, z, e = best
+                if self.rule.indistinguishable(rss_selected=rss, rss_other=res.rss_fit, n_fit=res.n_fit):
+                    break   # (also when it fits worse)
+                self.log(f"  {what}: phase-profiled step {k + 1} ({a:g} of the linear step, phases estimated "
+                         f"there): {math.sqrt(rss / res.n_fit):.4g} rad/s (was {res.rmse_fit:.4g}); fitting on from there")
                 model.phases = {**saved, **identified_phases(e)}
-                r = model.residuals([h.point(z)], fit_idx)[0]
-                if best is None or r @ r < best[0]:
-                    best = (float(r @ r), a, z, e)
-                model.phases = saved
-            rss, a, z, e = best
-            if self.rule.indistinguishable(rss_selected=rss, rss_other=res.rss_fit, n_fit=res.n_fit):
-                break   # (also when it fits worse)
-            self.log(f"  phase-profiled step {k + 1} ({a:g} of the linear step, phases estimated there): "
-                     f"{math.sqrt(rss / res.n_fit):.4g} rad/s (was {res.rmse_fit:.4g}); fitting on from there")
-            model.phases = {**saved, **identified_phases(e)}
-            est.update({i: q for i, q in e.items() if q.identified})
-            nxt = fit_hypothesis(model, h, fit_idx, x0=z, max_jac=2 * self.max_jac, tol=FIT_TOL)
-            nxt.extra.update(njac=nxt.extra["njac"] + res.extra["njac"], phase_steps=k + 1)
-            self.log(f"  calibration: fit RMSE {nxt.rmse_fit:.4g} rad/s")
-            res = nxt
+                if est is not None:
+                    est.update({i: q for i, q in e.items() if q.identified})
+                nxt = fit_hypothesis(model, h, fit_idx, x0=z, max_jac=max_jac, tol=FIT_TOL)
+                nxt.extra.update({**{k2: v for k2, v in res.extra.items() if k2 not in nxt.extra},
+                                  "njac": nxt.extra["njac"] + res.extra["njac"], "phase_steps": k + 1,
+                                  "fit_phases": {i: model.phases[i] for i in fit_idx if i in model.phases}})
+                self.log(f"  {what}: fit RMSE {nxt.rmse_fit:.4g} rad/s")
+                res = nxt
+        finally:
+            model.phases = entry
         return res
+
+    @staticmethod
+    @contextmanager
+    def _fit_phases(model, res):
+        """Run the model with the fit recordings' phases ``res`` was fitted with (its
+        ``extra["fit_phases"]``, set by :meth:`_phase_step` and by ``assess``); the other
+        recordings' phases as they are. Restores ``model.phases`` on exit."""
+        saved = dict(model.phases)
+        model.phases = {**saved, **res.extra.get("fit_phases", {})}
+        try:
+            yield
+        finally:
+            model.phases = saved
 
     def _unstall(self, model, h: Hypothesis, res, fit_idx, what: str = "calibration", max_jac: int | None = None):
         """Fit again from a fit's linear step while that step fits clearly better (at most
@@ -811,6 +841,7 @@ class Diagnosis:
                     cal = recalibrate(cal, "with the wheel phases", "calibrate_phase")
                     if self.phase_steps > 0:
                         cal = self.calibrated_ = self._phase_step(model, base_h, cal, fit_idx, est)
+                        model.phases.update(cal.extra.get("fit_phases", {}))   # the base's phases
                         self.phase_["steps"] = cal.extra.get("phase_steps", 0)
                         lap("calibrate_phase_step")
                     base_mc, _ = base_h.point(cal.x)
@@ -922,6 +953,9 @@ class Diagnosis:
             self.ablation_ = None
 
             def assess(cand, h, res):
+                # the fit recordings' phases it was fitted with (they are the base's unless a
+                # phase-profiled step of its own moved them): its speeds are run with them later
+                res.extra.setdefault("fit_phases", {i: model.phases[i] for i in fit_idx if i in model.phases})
                 hc = rms(model.residuals([h.point(res.x)], held_idx)[0]) if held_idx else math.nan
                 # held-out score: the median per-recording ratio, so that one recording flipped
                 # across the full-slip cliff does not decide alone
@@ -1012,6 +1046,13 @@ class Diagnosis:
                     nxt = self._unstall(model, h, best, fit_idx, what=f"refit of {cand.id}", max_jac=self.max_jac)
                     if nxt is not best:
                         assess(cand, h, nxt)
+                # the same phase-profiled steps as the base had (fair: the base's valley was left
+                # that way), for a refit still above the threshold; each with its own phases
+                best = self.refits_[cand.id]["result"]
+                if self.phase_.get("steps") is not None and self.rule.mismatch(best.rmse_fit, self.floor_):
+                    nxt = self._phase_step(model, h, best, fit_idx, what=f"refit of {cand.id}", max_jac=self.max_jac)
+                    if nxt is not best:
+                        assess(cand, h, nxt)
 
             for cid in short:
                 refit(cid)
@@ -1028,9 +1069,10 @@ class Diagnosis:
                 if prev.budget_hit and self.refits_[lead]["explained"] > 0 and lead not in continued:
                     continued.add(lead)
                     self.log(f"continuing the leading candidate {lead} ({polish} Jacobians)")
-                    assess(library[lead], prev.hypothesis,
-                           fit_hypothesis(model, prev.hypothesis, fit_idx, max_jac=polish, previous=prev,
-                                          tol=FIT_TOL))
+                    with self._fit_phases(model, prev):
+                        assess(library[lead], prev.hypothesis,
+                               fit_hypothesis(model, prev.hypothesis, fit_idx, max_jac=polish, previous=prev,
+                                              tol=FIT_TOL))
                     lap("refit_continued")
 
             continue_leader()
@@ -1059,24 +1101,41 @@ class Diagnosis:
             # "explained" 68 % of the excess). Refit the base alone from the best eligible
             # candidate's coefficients; if that beats the calibration, it becomes the calibration
             # and every candidate is judged again against it.
-            eligible = [k for k, v in self.refits_.items() if v["eligible"]]
-            if eligible and polish > 0:
+            def ablation(rejudge) -> None:
+                """Refit the base from the best eligible candidate's coefficients (and fit
+                phases); adopt it if it beats the calibration, then ``rejudge()`` the candidates."""
+                nonlocal cal
+                eligible = [k for k, v in self.refits_.items() if v["eligible"]]
+                if not eligible or polish <= 0:
+                    return
                 lead = max(eligible, key=lambda k: self.refits_[k]["explained"])
-                x_lead = self.refits_[lead]["result"].x[:base_h.n_base]
+                lead_res = self.refits_[lead]["result"]
+                x_lead = lead_res.x[:base_h.n_base]
                 self.log(f"ablation: refitting the base model alone from {lead}'s coefficients")
-                alt = fit_hypothesis(model, base_h, fit_idx, x0=x_lead, max_jac=self.max_jac, tol=FIT_TOL)
+                # ... and with its fit phases, where a phase-profiled step gave it its own: a
+                # candidate must not win by phases the base was never offered
+                with self._fit_phases(model, lead_res):
+                    alt = fit_hypothesis(model, base_h, fit_idx, x0=x_lead, max_jac=self.max_jac, tol=FIT_TOL)
+                    alt.extra["fit_phases"] = {i: model.phases[i] for i in fit_idx if i in model.phases}
                 self.ablation_ = {"candidate": lead, "rmse_fit": alt.rmse_fit, "calibrated_rmse_fit": cal.rmse_fit,
                                   "adopted": alt.rss_fit < cal.rss_fit}
                 if alt.rss_fit < cal.rss_fit:
                     alt.extra["ablation_of"] = lead
                     cal = self.calibrated_ = alt
+                    model.phases.update(alt.extra["fit_phases"])   # the base's phases from here on
                     self.mismatch_ = self.rule.mismatch(cal.rmse_fit, self.floor_)
-                    h0, h0_rec = baseline()
                     self.log(f"  the base model alone reaches {cal.rmse_fit:.4g} rad/s "
                              f"({cal.rmse_fit / self.floor_:.2f}x the floor): candidates judged again")
-                    for cid in list(self.refits_):
-                        assess(library[cid], self.refits_[cid]["result"].hypothesis, self.refits_[cid]["result"])
+                    rejudge()
                 lap("ablation")
+
+            def rejudge_at_base_phases():
+                nonlocal h0, h0_rec
+                h0, h0_rec = baseline()
+                for cid in list(self.refits_):
+                    assess(library[cid], self.refits_[cid]["result"].hypothesis, self.refits_[cid]["result"])
+
+            ablation(rejudge_at_base_phases)
 
             # 5e. the held-out recordings' phases, per model. 2a estimated them at the calibrated
             # base; a missing effect biases that estimate (encoder_delay seed 19: up to 0.12 pitch
@@ -1086,24 +1145,46 @@ class Diagnosis:
             # fit it best: an initial state estimated on the validation data, as output-error
             # identification does. One scan per model and held-out recording (20 runs each).
             held_phases = {}                  # None (the base) or candidate id -> {i: PhaseEstimate}
-            fit_phases = {i: q for i, q in model.phases.items() if i not in held_idx}
+            fit_phases = {i: q for i, q in model.phases.items() if i not in held_idx}   # the base's
 
-            def with_held(est):
-                model.phases = {**fit_phases, **identified_phases(est)}
+            def with_held(est, res=None):
+                """The held-out phases ``est``; the fit recordings' those ``res`` was fitted with
+                (None: the base's)."""
+                own = res.extra.get("fit_phases", {}) if res is not None else {}
+                model.phases = {**fit_phases, **own, **identified_phases(est)}
 
             if self.phase_["estimated"] and held_idx:
                 def rephase(pt):
                     return estimate_phases(model, pt, held_idx)
 
+                def judge_with_held_phases():
+                    """The base's held-out RMSEs and every candidate's judgement, each model
+                    with its own held-out phases (``held_phases``)."""
+                    nonlocal h0, h0_rec
+                    with_held(held_phases[None])
+                    h0, h0_rec = baseline()
+                    for cid in list(self.refits_):
+                        r = self.refits_[cid]["result"]
+                        with_held(held_phases[cid], r)
+                        assess(library[cid], r.hypothesis, r)
+
+                def rebase():
+                    """After an ablation adopted: the new base's fit and held-out phases."""
+                    fit_phases.update(cal.extra["fit_phases"])
+                    held_phases[None] = rephase(base_h.point(cal.x))
+                    judge_with_held_phases()
+
                 held_phases[None] = rephase(base_h.point(cal.x))
-                with_held(held_phases[None])
-                h0, h0_rec = baseline()
                 for cid in list(self.refits_):
                     r = self.refits_[cid]["result"]
                     held_phases[cid] = rephase(r.hypothesis.point(r.x))
-                    with_held(held_phases[cid])
-                    assess(library[cid], r.hypothesis, r)
+                judge_with_held_phases()
                 lap("heldout_phase")
+                # a candidate judged eligible only now (its held-out phases were biased against
+                # it at the base's) has not met the ablation yet: it must
+                if self.ablation_ is None:
+                    with_held(held_phases[None])
+                    ablation(rebase)
 
             # 6. decide
             dec = decision()
@@ -1118,8 +1199,10 @@ class Diagnosis:
             if held_phases:
                 # the final model's held-out phases from here on (the after figures and plots)
                 final_held = held_phases[self.selected_[0] if self.selected_ else None]
-                with_held(final_held)
+                with_held(final_held, self.final_)
                 self.phase_["heldout"] = {recs[i].name: e.to_dict() for i, e in final_held.items()}
+            else:
+                model.phases = {**fit_phases, **self.final_.extra.get("fit_phases", {})}
             after = {}
             for i in held_idx:
                 after[recs[i].name] = rms(model.residuals([fh.point(self.final_.x)], [i])[0])
@@ -1137,8 +1220,12 @@ class Diagnosis:
                 pts = {"before": base_h.point(cal.x), "after": fh.point(self.final_.x)}
                 tq = {}
                 for k, pt in pts.items():
-                    if held_phases:   # each model with its own held-out phases
-                        with_held(held_phases[None] if k == "before" else final_held)
+                    # each model with its own phases
+                    if held_phases:
+                        with_held(*((held_phases[None], None) if k == "before" else (final_held, self.final_)))
+                    else:
+                        model.phases = {**fit_phases, **(self.final_.extra.get("fit_phases", {})
+                                                         if k == "after" else {})}
                     tq[k] = dict(zip(all_idx, model.torques([pt], all_idx)[0]))
                 self.base_torque_, self.final_torque_ = tq["before"], tq["after"]
                 for k in pts:

@@ -195,6 +195,7 @@ def _to_json(d) -> dict:
                                      "std": primary_std(cand, cv, res.std,
                                                         res.corr[res.hypothesis.n_base:, res.hypothesis.n_base:])},
                          "fit_rmse": res.rmse_fit, "heldout_rmse": r["heldout_rmse"],
+                         "phase_steps": res.extra.get("phase_steps", 0),
                          "dbic": r["dbic"], "heldout_gain": r["heldout_gain"], "eligible": r["eligible"],
                          "explains_mismatch": d.rule.explains_mismatch(
                              res.rmse_fit, d.floor_, h0=d.heldout_["before"]["heldout_rmse"], hc=r["heldout_rmse"]),
@@ -334,9 +335,20 @@ def _phase_md(d) -> list:
             + (f". Then {d.phase_['steps']} phase-profiled step(s) of the base "
                "(`--phase-steps`) estimated them again at the point each step went to; these are the "
                "phases of the last" if d.phase_.get("steps") else "")
+            + _candidate_phase_md(d)
             + f". On the {len(ok)} identified, the floor's bump part is the phase's uncertainty "
             f"({PHASE_UNCERTAINTY:g} pitch) instead of a quarter pitch."
             + _heldout_phase_md(d), ""]
+
+
+def _candidate_phase_md(d) -> str:
+    """The sentence on the candidates' refits that took phase-profiled steps of their own."""
+    own = {k: v["result"].extra["phase_steps"] for k, v in d.refits_.items()
+           if v["result"].extra.get("phase_steps")}
+    if not own:
+        return ""
+    return ("; refits with phase-profiled steps of their own, each fitted and judged with the phases of "
+            "its last step: " + ", ".join(f"`{k}` ({n})" for k, n in own.items()))
 
 
 def _heldout_phase_md(d) -> str:
