@@ -1237,6 +1237,8 @@ def test_null_diagnosis_estimates_the_phases_and_the_floor_loses_the_bumps(null)
         assert v["identified"] and _pitches_apart(v["q_w0"], q0[k], 100) <= PHASE_UNCERTAINTY, (k, v)
     assert d["cost"]["seconds"]["heldout_phase"] > 0
     assert "estimated again for each model" in (out / "report.md").read_text()
+    # the final model (the base here) runs the fit recordings with the base's phases
+    assert d["wheel_phase"]["final_fit"] == {k: v["q_w0"] for k, v in ph.items() if k not in held}
 
 
 def test_no_phase_starts_every_run_from_the_default_offset(null, monkeypatch):

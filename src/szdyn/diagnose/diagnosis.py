@@ -1203,6 +1203,10 @@ class Diagnosis:
                 self.phase_["heldout"] = {recs[i].name: e.to_dict() for i, e in final_held.items()}
             else:
                 model.phases = {**fit_phases, **self.final_.extra.get("fit_phases", {})}
+            if self.phase_["estimated"]:
+                # the fit recordings' initial wheel angles (rad) the final model runs with: the
+                # base's (``phases_``) unless its refit took phase-profiled steps of its own
+                self.phase_["final_fit"] = {recs[i].name: model.phases[i] for i in fit_idx if i in model.phases}
             after = {}
             for i in held_idx:
                 after[recs[i].name] = rms(model.residuals([fh.point(self.final_.x)], [i])[0])
