@@ -1070,9 +1070,11 @@ class Diagnosis:
                     continued.add(lead)
                     self.log(f"continuing the leading candidate {lead} ({polish} Jacobians)")
                     with self._fit_phases(model, prev):
-                        assess(library[lead], prev.hypothesis,
-                               fit_hypothesis(model, prev.hypothesis, fit_idx, max_jac=polish, previous=prev,
-                                              tol=FIT_TOL))
+                        nxt = fit_hypothesis(model, prev.hypothesis, fit_idx, max_jac=polish, previous=prev,
+                                             tol=FIT_TOL)
+                        if prev.extra.get("phase_steps"):   # (its phases and its record go on)
+                            nxt.extra["phase_steps"] = prev.extra["phase_steps"]
+                        assess(library[lead], prev.hypothesis, nxt)
                     lap("refit_continued")
 
             continue_leader()
