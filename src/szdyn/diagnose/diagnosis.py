@@ -89,6 +89,12 @@ WEIGHTINGS = ("fallback", "always", "off")
 FLOOR_SPREAD = 3.0
 
 
+def phases_on(model, which) -> dict:
+    """Recording index -> initial wheel angle (rad) that ``model.phases`` holds now for the
+    recordings ``which`` (those without one start from the default offset)."""
+    return {i: model.phases[i] for i in which if i in model.phases}
+
+
 def probe_additions(probing, shortlist, rule: SelectionRule, *, rss_base: float, n_fit: int) -> list:
     """Entries of the probe screening that go on the refit shortlist.
 
@@ -568,7 +574,7 @@ class Diagnosis:
                 nxt = fit_hypothesis(model, h, fit_idx, x0=z, max_jac=max_jac, tol=FIT_TOL)
                 nxt.extra.update({**{k2: v for k2, v in res.extra.items() if k2 not in nxt.extra},
                                   "njac": nxt.extra["njac"] + res.extra["njac"], "phase_steps": k + 1,
-                                  "fit_phases": {i: model.phases[i] for i in fit_idx if i in model.phases}})
+                                  "fit_phases": phases_on(model, fit_idx)})
                 self.log(f"  {what}: fit RMSE {nxt.rmse_fit:.4g} rad/s")
                 res = nxt
         finally:
@@ -955,7 +961,7 @@ class Diagnosis:
             def assess(cand, h, res):
                 # the fit recordings' phases it was fitted with (they are the base's unless a
                 # phase-profiled step of its own moved them): its speeds are run with them later
-                res.extra.setdefault("fit_phases", {i: model.phases[i] for i in fit_idx if i in model.phases})
+                res.extra.setdefault("fit_phases", phases_on(model, fit_idx))
                 hc = rms(model.residuals([h.point(res.x)], held_idx)[0]) if held_idx else math.nan
                 # held-out score: the median per-recording ratio, so that one recording flipped
                 # across the full-slip cliff does not decide alone
@@ -1118,7 +1124,7 @@ class Diagnosis:
                 # candidate must not win by phases the base was never offered
                 with self._fit_phases(model, lead_res):
                     alt = fit_hypothesis(model, base_h, fit_idx, x0=x_lead, max_jac=self.max_jac, tol=FIT_TOL)
-                    alt.extra["fit_phases"] = {i: model.phases[i] for i in fit_idx if i in model.phases}
+                    alt.extra["fit_phases"] = phases_on(model, fit_idx)
                 self.ablation_ = {"candidate": lead, "rmse_fit": alt.rmse_fit, "calibrated_rmse_fit": cal.rmse_fit,
                                   "adopted": alt.rss_fit < cal.rss_fit}
                 if alt.rss_fit < cal.rss_fit:
@@ -1150,8 +1156,8 @@ class Diagnosis:
             fit_phases = {i: q for i, q in model.phases.items() if i not in held_idx}   # the base's
 
             def with_held(est, res=None):
-                """The held-out phases ``est``; the fit recordings' those ``res`` was fitted with
-                (None: the base's)."""
+                """The held-out phases ``est`` (empty: none estimated); the fit recordings' those
+                ``res`` was fitted with (None: the base's)."""
                 own = res.extra.get("fit_phases", {}) if res is not None else {}
                 model.phases = {**fit_phases, **own, **identified_phases(est)}
 
@@ -1198,17 +1204,15 @@ class Diagnosis:
                          f"recordings beyond it): partial, not selected")
             self.final_ = self.refits_[self.selected_[0]]["result"] if self.selected_ else cal
             fh = self.final_.hypothesis
+            # the final model's phases from here on (the after figures and plots)
+            final_held = held_phases.get(self.selected_[0] if self.selected_ else None, {})
+            with_held(final_held, self.final_)
             if held_phases:
-                # the final model's held-out phases from here on (the after figures and plots)
-                final_held = held_phases[self.selected_[0] if self.selected_ else None]
-                with_held(final_held, self.final_)
                 self.phase_["heldout"] = {recs[i].name: e.to_dict() for i, e in final_held.items()}
-            else:
-                model.phases = {**fit_phases, **self.final_.extra.get("fit_phases", {})}
             if self.phase_["estimated"]:
                 # the fit recordings' initial wheel angles (rad) the final model runs with: the
                 # base's (``phases_``) unless its refit took phase-profiled steps of its own
-                self.phase_["final_fit"] = {recs[i].name: model.phases[i] for i in fit_idx if i in model.phases}
+                self.phase_["final_fit"] = {recs[i].name: q for i, q in phases_on(model, fit_idx).items()}
             after = {}
             for i in held_idx:
                 after[recs[i].name] = rms(model.residuals([fh.point(self.final_.x)], [i])[0])
@@ -1227,11 +1231,7 @@ class Diagnosis:
                 tq = {}
                 for k, pt in pts.items():
                     # each model with its own phases
-                    if held_phases:
-                        with_held(*((held_phases[None], None) if k == "before" else (final_held, self.final_)))
-                    else:
-                        model.phases = {**fit_phases, **(self.final_.extra.get("fit_phases", {})
-                                                         if k == "after" else {})}
+                    with_held(*((held_phases.get(None, {}), None) if k == "before" else (final_held, self.final_)))
                     tq[k] = dict(zip(all_idx, model.torques([pt], all_idx)[0]))
                 self.base_torque_, self.final_torque_ = tq["before"], tq["after"]
                 for k in pts:
