@@ -2,7 +2,7 @@
 
 Usage::
 
-    python bench/diagnosis_cost.py --work DIR [--effect load_lift] [--seed 31]
+    python bench/diagnosis_cost.py --work DIR [--effect load_lift] [--seed 31] [--diagnose-args "--phase-steps 2"]
 
 Writes three 10 s recordings at one load (1 kg; ramps to +pi, +2 pi and -pi rad/s, each held to
 10 s) with one concealed effect, runs ``python -m szdyn.run diagnose`` on them as a user would
@@ -38,6 +38,7 @@ def main(argv=None) -> int:
     ap.add_argument("--work", type=Path, required=True)
     ap.add_argument("--effect", default="load_lift")
     ap.add_argument("--seed", type=int, default=31)
+    ap.add_argument("--diagnose-args", default="", help="extra diagnose options (default: none, the CLI defaults)")
     args = ap.parse_args(argv)
     data, out = args.work / "data", args.work / "diagnosis"
     if not (data / "truth.json").is_file():
@@ -50,13 +51,15 @@ def main(argv=None) -> int:
         k = lines.index("[split]")
         man.write_text("\n".join(lines[:k] + lines[k + 2:]) + "\n")
     t = time.perf_counter()
-    subprocess.run([sys.executable, "-m", "szdyn.run", "diagnose", str(man), "--out", str(out)], check=True)
+    subprocess.run([sys.executable, "-m", "szdyn.run", "diagnose", str(man), "--out", str(out),
+                    *args.diagnose_args.split()], check=True)
     seconds = time.perf_counter() - t
     truth = json.loads((data / "truth.json").read_text())
     d = json.loads((out / "diagnosis.json").read_text())
     res = {"effect": args.effect, "seed": args.seed, "seconds": round(seconds, 1), "selected": d["selected"],
            "verdict": d["verdict"], "heldout_before": d["fit"]["before"]["heldout_rmse"],
-           "heldout_after": d["fit"]["after"]["heldout_rmse"], "model_runs": d["cost"]["model_runs"]}
+           "heldout_after": d["fit"]["after"]["heldout_rmse"], "model_runs": d["cost"]["model_runs"],
+           "diagnose_args": args.diagnose_args}
     if args.effect != "none":
         prim = CANDIDATES[args.effect].primary
         tv = {**truth["effect_parameters"], **truth["effect_sensor"]}.get(prim)

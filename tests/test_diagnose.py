@@ -885,6 +885,7 @@ def test_diagnosis_json_schema(viscous):
     # the ablation (base model alone from the selected candidate's coefficients) ran and, the
     # drag being real, did not fit as well
     assert d["ablation"]["candidate"] == "slider_viscous" and not d["ablation"]["adopted"]
+    assert d["restart"] is None            # (off by default)
     # the effect parameter comes with its (local) standard deviation
     sel = next(e for e in d["effects"] if e["selected"])
     assert sel["primary"]["std"] == pytest.approx(sel["std"]["c_visc"])
@@ -1255,6 +1256,22 @@ def test_no_phase_starts_every_run_from_the_default_offset(null, monkeypatch):
     assert run_main(["diagnose", man, "--out", str(out.parent / "x")]) != 0
     assert run_main(["diagnose", man, "--out", str(out.parent / "x"), "--no-phase"]) != 0
     assert seen == [True, False]
+
+
+def test_restart_is_off_unless_asked(null, monkeypatch):
+    from szdyn.diagnose import diagnosis
+
+    _, _, out = null
+    seen = []
+
+    def stop(self, recs):
+        seen.append(self.restart)
+        raise UserInputError("stopped before fitting")
+    monkeypatch.setattr(diagnosis.Diagnosis, "fit", stop)
+    man = str(out.parent / "data" / "manifest.toml")
+    assert run_main(["diagnose", man, "--out", str(out.parent / "x")]) != 0
+    assert run_main(["diagnose", man, "--out", str(out.parent / "x"), "--restart"]) != 0
+    assert seen == [False, True]
 
 
 def test_a_large_mismatch_leaves_the_phases_unestimated(viscous):

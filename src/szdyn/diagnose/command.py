@@ -48,6 +48,10 @@ def _build_parser():
     ap.add_argument("--no-phase", action="store_true",
                     help="start every model run from the default wheel offset instead of estimating each "
                     "recording's initial wheel phase (the impact bumps then count in the noise floor)")
+    ap.add_argument("--restart", action="store_true",
+                    help="run a pass that named nothing again, calibrated from the base its ablation found, "
+                         "when that fits at least 2x better than the calibration (default: off; measured on "
+                         "one case, docs/DIAGNOSIS-DESIGN.md)")
     ap.add_argument("--phase-steps", type=int, default=0,
                     help="after the calibration with the wheel phases, at most this many Gauss-Newton steps of "
                     "the base model, and of each candidate's refit left above the threshold, whose trial points are "
@@ -140,7 +144,7 @@ def diagnose_command(argv) -> int:
                   probe_screen=not args.no_probe_screen, max_jac=args.max_jac,
                   polish_jac=args.polish_jac, rivals=args.rivals, exchange_split=not args.no_exchange_split,
                   weighting=args.weighting, unstall=args.unstall, fit_phase=not args.no_phase,
-                  phase_steps=args.phase_steps,
+                  phase_steps=args.phase_steps, restart=args.restart,
                   workers=args.workers,
                   log=log, progress=progress).fit(recs)
     js = write_report(d, args.out)

@@ -226,6 +226,7 @@ def _to_json(d) -> dict:
         "calibrated_std": {k: cal.std.get(k, math.nan) for k in ("k_c", "b_c", "k_imp", "mu_s", "mu_k")},
         "calibration_status": _status(cal),
         "ablation": d.ablation_,
+        "restart": d.restart_,
         "not_identified": {k: d.recordings_[0].params[k] for k in FIXED_UNIDENTIFIED},
         "final": {"values": fin.values, "std": fin.std, "sensor": sensor},
         "fit": {"before": {"heldout_rmse": d.heldout_["before"]["heldout_rmse"],
@@ -305,6 +306,19 @@ def _split_md(d) -> list:
               "that recording is either less reproducible than the floor says or shows something this "
               "model does not have.", ""]
     return L
+
+
+def _restart_md(d) -> list:
+    """Report paragraph on a pass run again from the base its ablation found (``restart_``)."""
+    if not d.restart_:
+        return []
+    r, ab = d.restart_, d.restart_["ablation"]
+    return [f"**Calibration restarted.** A first pass calibrated the base at {ab['calibrated_rmse_fit']:.4g} "
+            f"rad/s and said {r['verdict']}; its ablation refitted the base alone from `{ab['candidate']}`'s "
+            f"coefficients to {ab['rmse_fit']:.4g} rad/s. The calibration had stopped in a valley of the base "
+            "model itself, where the screening and the refits' starts were made, so this diagnosis is a second "
+            f"pass with the calibration started at that base. First pass: {r['seconds']:.0f} s, "
+            f"{r['model_runs']} model runs.", ""]
 
 
 def _phase_md(d) -> list:
@@ -432,7 +446,7 @@ def _report_md(d, js) -> str:
               "manifest `[split]`, and run again), or they are less reproducible than the floor "
               "estimate says (near the full-slip cliff: on szdyn's grid a 2 % change of mu_k "
               "decided between tracking and slipping on one such recording).", ""]
-    L += _split_md(d)
+    L += _split_md(d) + _restart_md(d)
     o = d.weighting_["other_pass"]
     if o is not None:
         said = (f"{o['verdict']}" + (f" ({', '.join(o['selected'])})" if o["selected"] else "")
