@@ -356,6 +356,7 @@ class Diagnosis:
         self.progress = progress
         self._moving_speed = None   # set by each pass: measured band speed where the band moves
         self._refined = {}          # candidate id -> (name, x, rss): probe continued by one Jacobian
+        self._base_start = None     # where a pass's calibration starts (None: the nominal coefficients)
 
     def _library(self) -> list:
         if self.candidates is None:
@@ -674,7 +675,7 @@ class Diagnosis:
         # model runs shared by the passes (a second pass repeats the first one's unweighted
         # calibration exactly; residual weights are applied after the runs)
         self._runs = {}
-        self._base_start = None   # where every calibration starts (None: the nominal coefficients)
+        self._base_start = None
         recs = self._pass_with_exchange(list(recordings), weighted=self.weighting == "always")
         self.weighting_ = {"mode": self.weighting, "spread": self.floor_spread_, "threshold": FLOOR_SPREAD,
                            "weighted": self.weighted_, "other_pass": None}
@@ -809,9 +810,10 @@ class Diagnosis:
         looked where the effect shows."""
         self._fit_pass(recs, weighted)
         self.restart_ = None
+        if not self.restart or self.verdict_ == "selected":
+            return
         ab = self.ablation_
-        if not (self.restart and self.verdict_ != "selected" and ab and ab["adopted"]
-                and ab["calibrated_rmse_fit"] >= RESTART_RATIO * ab["rmse_fit"]):
+        if not (ab and ab["adopted"] and ab["calibrated_rmse_fit"] >= RESTART_RATIO * ab["rmse_fit"]):
             return
         first = {**self._summary(), "ablation": dict(ab)}
         self.log(f"the base model alone refitted from {ab['candidate']}'s coefficients fits at "
