@@ -1242,36 +1242,24 @@ def test_null_diagnosis_estimates_the_phases_and_the_floor_loses_the_bumps(null)
     assert d["wheel_phase"]["final_fit"] == {k: v["q_w0"] for k, v in ph.items() if k not in held}
 
 
-def test_no_phase_starts_every_run_from_the_default_offset(null, monkeypatch):
+@pytest.mark.parametrize("flag, attr, default", [
+    ("--no-phase", "fit_phase", True),      # every run then starts from the default offset
+    ("--restart", "restart", False),        # off unless asked
+])
+def test_a_switch_reaches_the_diagnosis(null, monkeypatch, flag, attr, default):
     from szdyn.diagnose import diagnosis
 
     _, _, out = null
     seen = []
 
     def stop(self, recs):
-        seen.append(self.fit_phase)
+        seen.append(getattr(self, attr))
         raise UserInputError("stopped before fitting")
     monkeypatch.setattr(diagnosis.Diagnosis, "fit", stop)
     man = str(out.parent / "data" / "manifest.toml")
     assert run_main(["diagnose", man, "--out", str(out.parent / "x")]) != 0
-    assert run_main(["diagnose", man, "--out", str(out.parent / "x"), "--no-phase"]) != 0
-    assert seen == [True, False]
-
-
-def test_restart_is_off_unless_asked(null, monkeypatch):
-    from szdyn.diagnose import diagnosis
-
-    _, _, out = null
-    seen = []
-
-    def stop(self, recs):
-        seen.append(self.restart)
-        raise UserInputError("stopped before fitting")
-    monkeypatch.setattr(diagnosis.Diagnosis, "fit", stop)
-    man = str(out.parent / "data" / "manifest.toml")
-    assert run_main(["diagnose", man, "--out", str(out.parent / "x")]) != 0
-    assert run_main(["diagnose", man, "--out", str(out.parent / "x"), "--restart"]) != 0
-    assert seen == [False, True]
+    assert run_main(["diagnose", man, "--out", str(out.parent / "x"), flag]) != 0
+    assert seen == [default, not default]
 
 
 def test_a_large_mismatch_leaves_the_phases_unestimated(viscous):
