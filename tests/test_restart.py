@@ -42,7 +42,6 @@ class Passes(Diagnosis):
 
 def run(outcomes, **kw):
     d = Passes(outcomes, **{"restart": True, **kw})
-    d._base_start = None
     d._pass([], weighted=False)
     return d
 
@@ -74,7 +73,7 @@ def test_no_restart_without_a_far_better_base_or_when_named(outcome, kw):
 
 def test_every_later_pass_starts_from_the_better_base():
     # the restarted pass names nothing either: its answer stands, and a later pass (the split
-    # exchanged, the weighting) calibrates from the same base without restarting again
+    # exchanged, the weighting) calibrates from the same base
     d = run([("unexplained", 0.697, 0.0404), ("unexplained", 0.0404, None)])
     assert d.verdict_ == "unexplained" and d.restart_ is not None
     d.outcomes = [("none", 0.012, None)]

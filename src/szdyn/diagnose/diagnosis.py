@@ -208,7 +208,8 @@ class Diagnosis:
         what the first said). Every later pass (split exchange, weighting) starts there too.
         Default False (off): on the one case measured (slider_stribeck 22) the restarted pass
         shortlisted the right effect first but still named nothing, at twice the cost
-        (docs/DIAGNOSIS-DESIGN.md, "Restarting from the ablation's base").
+        (docs/DIAGNOSIS-DESIGN.md, "Out-of-sample seed 22 with the steps, and restarting
+        from the ablation's base").
     workers : int, optional
         Processes for the model runs (default: CPU count).
     log : callable(str), optional
