@@ -1262,6 +1262,66 @@ def test_a_switch_reaches_the_diagnosis(null, monkeypatch, flag, attr, default):
     assert seen == [default, not default]
 
 
+def test_an_interrupted_diagnosis_resumes_from_its_saved_runs_to_the_same_answer(null, tmp_path, monkeypatch,
+                                                                                 capsys):
+    """Ctrl-C after some model runs: they are saved in ``--out/checkpoint`` and the command says
+    how to resume; the same command then loads them, makes only the runs it lacks and writes
+    the same diagnosis as an uninterrupted run, and removes the checkpoint."""
+    from szdyn.diagnose import engine
+
+    _, d0, out = null
+    man = str(out.parent / "data" / "manifest.toml")
+    res = str(tmp_path / "r")
+    real, calls = engine._simulate, [0]
+
+    def interrupted(task):
+        calls[0] += 1
+        if calls[0] == 40:
+            raise KeyboardInterrupt
+        return real(task)
+    # one worker: the runs are made in this process, where the patch acts
+    monkeypatch.setattr(engine, "_simulate", interrupted)
+    assert run_main(["diagnose", man, "--out", res, "--workers", "1", *SMALL]) == 130
+    assert "re-run the same command to resume" in capsys.readouterr().err
+    assert not (tmp_path / "r" / "diagnosis.json").exists()
+    monkeypatch.setattr(engine, "_simulate", real)
+    assert run_main(["diagnose", man, "--out", res, "--workers", "1", "--keep-runs", *SMALL]) == 0
+    d = json.loads((tmp_path / "r" / "diagnosis.json").read_text())
+    assert d["cost"]["resumed_runs"] == 39 and d0["cost"]["resumed_runs"] == 0
+    assert d["cost"]["model_runs"] + 39 == d0["cost"]["model_runs"]
+    for key in ("verdict", "selected", "calibrated", "fit", "effects", "noise_floor"):
+        assert d[key] == d0[key], key
+    assert "resumed with 39 model runs" in (tmp_path / "r" / "report.md").read_text()
+    # kept (--keep-runs): run again, every run is loaded and none made; then it is removed
+    assert (tmp_path / "r" / "checkpoint" / "fingerprint.json").is_file()
+    assert run_main(["diagnose", man, "--out", res, *SMALL]) == 0
+    d = json.loads((tmp_path / "r" / "diagnosis.json").read_text())
+    assert d["cost"]["model_runs"] == 0 and d["cost"]["resumed_runs"] == d0["cost"]["model_runs"]
+    assert d["selected"] == d0["selected"] and d["fit"] == d0["fit"]
+    assert not (tmp_path / "r" / "checkpoint").exists()
+
+
+def test_diagnose_without_checkpoint_or_with_an_out_that_is_a_file(null, tmp_path, monkeypatch):
+    """``--no-checkpoint`` gives the diagnosis none; an ``--out`` that is a file is refused
+    before any run, and the file is left as it was."""
+    from szdyn.diagnose import diagnosis
+
+    _, _, out = null
+    man = str(out.parent / "data" / "manifest.toml")
+    seen = []
+
+    def stop(self, recs):
+        seen.append(self.checkpoint)
+        raise UserInputError("stopped before fitting")
+    monkeypatch.setattr(diagnosis.Diagnosis, "fit", stop)
+    assert run_main(["diagnose", man, "--out", str(tmp_path / "a")]) != 0
+    assert run_main(["diagnose", man, "--out", str(tmp_path / "b"), "--no-checkpoint"]) != 0
+    assert seen[0].directory == tmp_path / "a" / "checkpoint" and seen[1] is None
+    (tmp_path / "file").write_text("x")
+    assert run_main(["diagnose", man, "--out", str(tmp_path / "file")]) == 2
+    assert len(seen) == 2 and (tmp_path / "file").read_text() == "x"
+
+
 def test_a_large_mismatch_leaves_the_phases_unestimated(viscous):
     """The concealed drag leaves the calibrated base far beyond the floor: a phase scan there
     would line the model's bumps up with the missing drag, so none is made and every run keeps

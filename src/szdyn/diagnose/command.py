@@ -69,6 +69,12 @@ def _build_parser():
                     help="when the calibration or a candidate's refit ends above the mismatch threshold, at "
                     "most this many times try its full linear step and, when that fits clearly better (a "
                     "stall), fit again from there (default 2; 0: never)")
+    ap.add_argument("--keep-runs", action="store_true",
+                    help="keep the model runs saved in DIR/checkpoint after the diagnosis finishes (by default "
+                    "they are removed then; while it runs they let an interrupted diagnosis resume: re-run "
+                    "the same command, with the same or other options)")
+    ap.add_argument("--no-checkpoint", action="store_true",
+                    help="do not save model runs to DIR/checkpoint (an interrupted diagnosis then starts afresh)")
     ap.add_argument("--workers", type=int, help="processes for model runs (default: CPU count)")
     ap.add_argument("--quiet", action="store_true", help="no progress on stderr")
     return ap
@@ -78,6 +84,7 @@ def diagnose_command(argv) -> int:
     from ..manifest import read_manifest
     from .candidates import CANDIDATES
     from .data import prepare
+    from .checkpoint import CHECKPOINT_DIR, RunCheckpoint, fingerprint
     from .diagnosis import Diagnosis
     from .report import write_report
     from .split import choose_heldout, with_heldout
@@ -140,14 +147,30 @@ def diagnose_command(argv) -> int:
                 "pair kept among the fit recordings where they allow)")
     log(f"{len(recs)} recording(s): {sum(r.role == 'fit' for r in recs)} fit, "
         f"{sum(r.role != 'fit' for r in recs)} held out")
+    # before the diagnosis: an --out that cannot take the results would lose the whole diagnosis
+    try:
+        args.out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise UserInputError(f"diagnose: --out {args.out}: cannot create the output directory "
+                             f"({exc.strerror or exc})") from None
+    checkpoint = None if args.no_checkpoint else RunCheckpoint(
+        args.out / CHECKPOINT_DIR, fingerprint(recs), warn=lambda m: print(f"diagnose: {m}", file=sys.stderr))
     d = Diagnosis(cands, shortlist=args.shortlist, nominate_r2=args.nominate_r2,
                   probe_screen=not args.no_probe_screen, max_jac=args.max_jac,
                   polish_jac=args.polish_jac, rivals=args.rivals, exchange_split=not args.no_exchange_split,
                   weighting=args.weighting, unstall=args.unstall, fit_phase=not args.no_phase,
-                  phase_steps=args.phase_steps, restart=args.restart,
-                  workers=args.workers,
-                  log=log, progress=progress).fit(recs)
+                  phase_steps=args.phase_steps, restart=args.restart, checkpoint=checkpoint,
+                  workers=args.workers, log=log, progress=progress)
+    try:
+        d.fit(recs)
+    except KeyboardInterrupt:
+        if checkpoint is not None and checkpoint.directory.is_dir():
+            print(f"diagnose interrupted: the model runs made so far are saved in {checkpoint.directory}; "
+                  "re-run the same command to resume", file=sys.stderr, flush=True)
+        raise
     js = write_report(d, args.out)
+    if checkpoint is not None and not args.keep_runs:
+        checkpoint.clear()
     sel = ", ".join(js["selected"]) or d.verdict_
     log(f"done: {sel}; held-out RMSE {js['fit']['before']['heldout_rmse']:.4g} -> "
         f"{js['fit']['after']['heldout_rmse']:.4g} rad/s; wrote {args.out}/report.md")

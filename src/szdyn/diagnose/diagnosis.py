@@ -210,6 +210,10 @@ class Diagnosis:
         shortlisted the right effect first but still named nothing, at twice the cost
         (docs/DIAGNOSIS-DESIGN.md, "Out-of-sample seed 22 with the steps, and restarting
         from the ablation's base").
+    checkpoint : RunCheckpoint, optional
+        Where model runs are saved as they finish and loaded from at the start of :meth:`fit`
+        (:mod:`.checkpoint`): an interrupted diagnosis rerun with it takes the same path and
+        runs only what it had not. Default None: runs are kept in memory only.
     workers : int, optional
         Processes for the model runs (default: CPU count).
     log : callable(str), optional
@@ -329,13 +333,16 @@ class Diagnosis:
         model (empty when the torque is not used).
     timings_ : dict
         Wall-clock seconds per step.
+    resumed_runs_ : int
+        Model runs loaded from ``checkpoint`` (0 without one, or when it was empty or discarded).
     """
 
     def __init__(self, candidates=None, rule: SelectionRule | None = None, *, shortlist: int = 2,
                  nominate_r2: float | None = 0.3, probe_screen: bool = True, max_jac: int = 4,
                  polish_jac: int | None = None, rivals: int = 2, exchange_split: bool = True,
                  weighting: str = "fallback", unstall: int = 2, fit_phase: bool = True,
-                 phase_steps: int = 0, restart: bool = False, workers: int | None = None, log=None, progress=None):
+                 phase_steps: int = 0, restart: bool = False, checkpoint=None, workers: int | None = None, log=None,
+                 progress=None):
         self.candidates = candidates
         self.rule = rule or SelectionRule()
         self.shortlist = shortlist
@@ -352,6 +359,7 @@ class Diagnosis:
             raise ValueError(f"phase_steps must be an integer >= 0, got {phase_steps!r}")
         self.phase_steps = phase_steps
         self.restart = restart
+        self.checkpoint = checkpoint
         self.workers = workers
         self.log = log or (lambda msg: None)
         self.progress = progress
@@ -676,6 +684,15 @@ class Diagnosis:
         # model runs shared by the passes (a second pass repeats the first one's unweighted
         # calibration exactly; residual weights are applied after the runs)
         self._runs = {}
+        self.resumed_runs_ = 0
+        if self.checkpoint is not None:
+            self._runs = self.checkpoint.load()
+            if self.checkpoint.discarded_:
+                self.log(f"not resuming: {self.checkpoint.discarded_}; starting afresh")
+            self.resumed_runs_ = len(self._runs)
+            if self._runs:
+                self.log(f"resuming: {len(self._runs)} model runs loaded from {self.checkpoint.directory} "
+                         "(the same path is taken again; only the runs it lacks are made)")
         self._base_start = None
         recs = self._pass_with_exchange(list(recordings), weighted=self.weighting == "always")
         self.weighting_ = {"mode": self.weighting, "spread": self.floor_spread_, "threshold": FLOOR_SPREAD,
@@ -851,7 +868,8 @@ class Diagnosis:
         self._moving_speed = np.concatenate([recs[i].y[np.abs(recs[i].y) > 1.5 * recs[i].params["gamma"]]
                                              for i in fit_idx])
         self._refined = {}
-        with FeatureModel(recs, workers=self.workers, progress=self.progress, cache=self._runs) as model:
+        with FeatureModel(recs, workers=self.workers, progress=self.progress, cache=self._runs,
+                          on_runs=None if self.checkpoint is None else self.checkpoint.save) as model:
             self.model_ = model
             # 1. calibrate
             self.log(f"calibrating k_c, b_c, k_imp, mu_s, mu_k on {len(fit_idx)} recording(s)")

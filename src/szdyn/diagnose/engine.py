@@ -191,6 +191,10 @@ class FeatureModel:
         Runs to share with other models of the same recordings (keyed by recording name and
         parameter changes, so a model with the roles or order of the recordings changed reuses
         them); default: a cache of its own.
+    on_runs : callable(dict), optional
+        Called with each batch of new runs (``{key: run}``, as added to the cache), also with
+        the part finished when a batch is interrupted: how a
+        :class:`~szdyn.diagnose.checkpoint.RunCheckpoint` saves them.
 
     Attributes
     ----------
@@ -202,12 +206,13 @@ class FeatureModel:
     """
 
     def __init__(self, recordings: Sequence[Prepared], workers: int | None = None, progress=None,
-                 cache: dict | None = None):
+                 cache: dict | None = None, on_runs=None):
         self.recordings = list(recordings)
         self._index = {r.name: i for i, r in enumerate(self.recordings)}   # cache keys are names
         self.workers = max(1, min(8, os.cpu_count() or 1) if workers is None else int(workers))
         self.progress = progress
         self._cache: dict = {} if cache is None else cache
+        self.on_runs = on_runs
         self._pool = None
         self.n_runs_ = 0
         self.n_failed_ = 0
@@ -267,13 +272,19 @@ class FeatureModel:
             order = sorted(range(len(tasks)), key=lambda j: -(tasks[j][3] - tasks[j][2]))
             futs = {j: pool.submit(_simulate, tasks[j]) for j in order}
             results = (futs[j].result() for j in range(len(tasks)))
-        for k, res in zip(todo, results):
-            self._cache[k] = res
-            self.n_runs_ += 1
-            if res is None:
-                self.n_failed_ += 1
-            if self.progress is not None:
-                self.progress(1)
+        new = {}
+        try:
+            for k, res in zip(todo, results):
+                self._cache[k] = new[k] = res
+                self.n_runs_ += 1
+                if res is None:
+                    self.n_failed_ += 1
+                if self.progress is not None:
+                    self.progress(1)
+        finally:
+            # also what finished before an interrupt: a resumed diagnosis need not run it again
+            if new and self.on_runs is not None:
+                self.on_runs(new)
 
     def speeds(self, points, which: Sequence[int]):
         """Model band speeds for several hypothesis points.

@@ -254,7 +254,9 @@ def _to_json(d) -> dict:
                         "t0": r.t0, "t1": r.t1, "samples": len(r.rec)} for r in d.recordings_],
         "compared": COMPARED,
         "units": UNITS,
-        "cost": {"seconds": d.timings_, "model_runs": d.n_runs_, "failed_runs": d.n_failed_},
+        "cost": {"seconds": d.timings_, "model_runs": d.n_runs_, "failed_runs": d.n_failed_,
+                 # runs loaded from a checkpoint of an interrupted run (not in model_runs or seconds)
+                 "resumed_runs": getattr(d, "resumed_runs_", 0)},
     }
 
 
@@ -574,7 +576,9 @@ def _report_md(d, js) -> str:
           "## Units", "", "Time s, angles rad, speeds rad/s, torques N m, SI throughout. " +
           "; ".join(f"{k}: {u}" for k, u in UNITS.items()) + ".", "",
           f"Cost: {sum(d.timings_.values()):.0f} s wall ({d.timings_}), {d.n_runs_} model runs"
-          f" ({d.n_failed_} failed with both integrators).", ""]
+          f" ({d.n_failed_} failed with both integrators)"
+          + (f"; resumed with {d.resumed_runs_} model runs of an interrupted run, not counted here"
+             if getattr(d, "resumed_runs_", 0) else "") + ".", ""]
     return "\n".join(L)
 
 
