@@ -43,6 +43,7 @@ def _same(a, b):
         if a[k] is None or b[k] is None:
             assert a[k] is None and b[k] is None, k
             continue
+        assert len(a[k]) == len(b[k]) == 3, k
         for x, y in zip(a[k], b[k]):
             assert (x is None and y is None) or np.array_equal(x, y), k
 
@@ -72,26 +73,49 @@ def test_saved_runs_load_back_exactly_batch_after_batch(tmp_path):
         assert {"tgrid_0", "t_1"} <= set(z.files) and not {"t_0", "tgrid_1", "qb_2"} & set(z.files)
 
 
-def test_runs_of_other_recordings_or_code_are_discarded_and_said(tmp_path):
+def test_runs_of_other_recordings_or_code_are_moved_aside_and_said(tmp_path):
     ck = RunCheckpoint(tmp_path / "ck", "old")
     ck.save(dict(list(_runs().items())[:1]))
-    other = RunCheckpoint(tmp_path / "ck", "new")
+    said = []
+    other = RunCheckpoint(tmp_path / "ck", "new", warn=said.append)
     assert other.load() == {} and other.loaded_ == 0
-    assert "other recordings or another version" in other.discarded_
-    assert not (tmp_path / "ck").exists()
+    assert said == [other.discarded_] and "other recordings, or of another version" in said[0]
+    # not deleted: a mistake (a changed manifest line) must not cost the runs; renamed back,
+    # they serve what they were made for
+    assert not (tmp_path / "ck").exists() and str(tmp_path / "ck-previous") in said[0]
+    (tmp_path / "ck-previous").rename(tmp_path / "ck")
+    assert len(RunCheckpoint(tmp_path / "ck", "old").load()) == 1
     # runs without a fingerprint are not trusted either
     (tmp_path / "ck2").mkdir()
     (tmp_path / "ck2" / "runs-00000.npz").write_bytes(b"")
     lone = RunCheckpoint(tmp_path / "ck2", "new")
     assert lone.load() == {} and "no fingerprint.json" in lone.discarded_
+    assert (tmp_path / "ck2-previous" / "runs-00000.npz").is_file()
 
 
-@pytest.mark.parametrize("damage", ["batch", "fingerprint"])
-def test_a_damaged_checkpoint_is_a_clear_error_naming_the_file(tmp_path, damage):
+def _damage(ck_dir, how):
+    fp, batch = ck_dir / "fingerprint.json", ck_dir / "runs-00000.npz"
+    if how == "cut batch":
+        batch.write_bytes(batch.read_bytes()[:20])
+        return batch
+    if how in ("cut fingerprint", "null fingerprint"):
+        fp.write_text('{"finger' if how == "cut fingerprint" else "null")
+        return fp
+    with np.load(batch, allow_pickle=False) as z:
+        arrays = {k: z[k] for k in z.files}
+    if how == "bad key":
+        arrays["keys"] = np.array(json.dumps([["up.csv", 3]]))
+    else:                                                 # a band angle shorter than its times
+        arrays["qb_0"] = arrays["qb_0"][:-1]
+    np.savez(batch, **arrays)
+    return batch
+
+
+@pytest.mark.parametrize("how", ["cut batch", "cut fingerprint", "null fingerprint", "bad key", "short run"])
+def test_a_damaged_checkpoint_is_a_clear_error_naming_the_file(tmp_path, how):
     ck = RunCheckpoint(tmp_path / "ck", "abc")
     ck.save(dict(list(_runs().items())[:2]))
-    bad = tmp_path / "ck" / ("runs-00000.npz" if damage == "batch" else "fingerprint.json")
-    bad.write_bytes(bad.read_bytes()[:20])
+    bad = _damage(tmp_path / "ck", how)
     with pytest.raises(UserInputError, match=str(bad).replace(".", r"\.")):
         RunCheckpoint(tmp_path / "ck", "abc").load()
 
@@ -108,7 +132,8 @@ def test_fingerprint_follows_what_a_run_depends_on_and_not_the_roles():
     assert fingerprint([_rec("b"), _rec("a", role="heldout")]) == base      # order and role: no
     assert fingerprint([_rec("a", omega=1.001), _rec("b")]) != base         # the measured drive
     assert fingerprint([_rec("a", mu_k=0.26), _rec("b")]) != base           # a manifest override
-    assert fingerprint([_rec("a", tau=np.zeros(3)), _rec("b")]) != base     # asks for the torque
+    # whether it asks for the torque: no (a saved run without it is made again, FeatureModel._has)
+    assert fingerprint([_rec("a", tau=np.zeros(3)), _rec("b")]) == base
     assert fingerprint([_rec("a")]) != base                                 # another set
 
 
@@ -121,3 +146,38 @@ def test_a_checkpoint_that_cannot_be_written_warns_once_and_lets_the_diagnosis_g
     ck.save(dict(items[1:2]))
     assert ck.error_ is not None and str(tmp_path / "ck") in ck.error_
     assert len(said) == 1 and "no longer saved" in said[0]
+
+
+def test_an_interrupted_batch_keeps_every_run_that_finished(monkeypatch):
+    """Ctrl-C while a batch runs on workers: the runs that finished are given to ``on_runs``,
+    also those that finished before the one being read (runs are handed out longest first
+    and read in order). A thread pool stands in for the process pool, so the patch acts."""
+    import threading
+    from concurrent.futures import ThreadPoolExecutor
+
+    from szdyn.diagnose import engine
+
+    durations = [0.5, 1.0, 2.0, 3.0, 4.0]   # read first, handed out last
+    recs = [_rec(f"r{j}") for j in range(5)]
+    for r, d in zip(recs, durations):
+        r.t1 = d
+    others_done = threading.Event()
+    finished = []
+
+    def simulate(task):
+        if task[3] == 0.5:                   # the run read first
+            assert others_done.wait(10)
+            raise KeyboardInterrupt
+        finished.append(task[3])
+        if len(finished) == 4:
+            others_done.set()
+        return np.arange(3.0), np.zeros(3), None
+    monkeypatch.setattr(engine, "_simulate", simulate)
+    saved = []
+    model = engine.FeatureModel(recs, workers=2, on_runs=saved.append)
+    monkeypatch.setattr(model, "_executor", lambda: pool)
+    with ThreadPoolExecutor(2) as pool:
+        with pytest.raises(KeyboardInterrupt):
+            model._run_all([(r.name, ()) for r in recs])
+    assert len(saved) == 1 and sorted(k[0] for k in saved[0]) == ["r1", "r2", "r3", "r4"]
+    assert model.n_runs_ == 4

@@ -1291,7 +1291,7 @@ def test_an_interrupted_diagnosis_resumes_from_its_saved_runs_to_the_same_answer
     assert d["cost"]["model_runs"] + 39 == d0["cost"]["model_runs"]
     for key in ("verdict", "selected", "calibrated", "fit", "effects", "noise_floor"):
         assert d[key] == d0[key], key
-    assert "resumed with 39 model runs" in (tmp_path / "r" / "report.md").read_text()
+    assert "39 more model runs were loaded from a checkpoint" in (tmp_path / "r" / "report.md").read_text()
     # kept (--keep-runs): run again, every run is loaded and none made; then it is removed
     assert (tmp_path / "r" / "checkpoint" / "fingerprint.json").is_file()
     assert run_main(["diagnose", man, "--out", res, *SMALL]) == 0

@@ -14,9 +14,11 @@ Layout of ``DIR`` (``--out DIR/checkpoint``)::
     runs-00000.npz       one batch of runs each (written atomically, no pickle)
     runs-00001.npz ...
 
-A checkpoint whose fingerprint differs (other recordings, another version of the model code) is
-discarded, and the diagnosis says so. After a diagnosis that finishes, the command removes the
-checkpoint unless told to keep it (``--keep-runs``).
+A checkpoint whose fingerprint differs (other recordings, another version of the code) is not
+used: it is moved aside to ``DIR-previous`` (replacing an older one there), so that a mistake
+such as a changed manifest line does not delete hours of runs, and the command says so. After a
+diagnosis that finishes, the command removes the checkpoint unless told to keep it
+(``--keep-runs``).
 """
 from __future__ import annotations
 
@@ -60,9 +62,10 @@ def fingerprint(recordings) -> str:
     Parameters
     ----------
     recordings : list of Prepared
-        Each recording's name, parameters, measured drive (time and wheel speed), interval and
-        whether it asks for the motor torque (its role does not matter: runs are shared by
-        fit and held-out use).
+        Each recording's name, parameters, measured drive (time and wheel speed) and interval.
+        Not its role (runs are shared by fit and held-out use), nor whether it asks for the motor
+        torque: a saved run without the torque does not answer a recording that asks for it
+        (``FeatureModel._has``), and is made again.
 
     Notes
     -----
@@ -77,8 +80,7 @@ def fingerprint(recordings) -> str:
         h.update(f.name.encode())
         h.update(f.read_bytes())
     for r in sorted(recordings, key=lambda r: r.name):
-        h.update(json.dumps([r.name, r.params.to_dict(), float(r.t0), float(r.t1), r.tau is not None],
-                            sort_keys=True).encode())
+        h.update(json.dumps([r.name, r.params.to_dict(), float(r.t0), float(r.t1)], sort_keys=True).encode())
         h.update(np.ascontiguousarray(r.drive.t, dtype=float).tobytes())
         h.update(np.ascontiguousarray(r.drive.omega, dtype=float).tobytes())
     return h.hexdigest()
@@ -123,15 +125,17 @@ class RunCheckpoint:
     fingerprint : str
         What the runs are valid for (:func:`fingerprint` of the recordings).
     warn : callable(str), optional
-        Told once when a batch cannot be written (disk full, permissions); the diagnosis then
-        goes on without saving, rather than losing what it has done.
+        Told when a checkpoint is not used (``discarded_``), and once when a batch cannot be
+        written (disk full, permissions): the diagnosis then goes on without saving, rather
+        than losing what it has done.
 
     Attributes
     ----------
     loaded_ : int
         Runs loaded by :meth:`load`.
     discarded_ : str or None
-        Why an existing checkpoint was not used (None: there was none, or it was used).
+        Why an existing checkpoint was not used, and where it went (None: there was none, or
+        it was used).
     error_ : str or None
         Why saving stopped (None: every batch was saved).
     """
@@ -160,18 +164,18 @@ class RunCheckpoint:
         stamp = self.directory / "fingerprint.json"
         if not stamp.is_file():
             if self._batches():
-                self.discarded_ = f"{self.directory} has runs but no fingerprint.json"
-                self.clear()
+                self._discard("it has runs but no fingerprint.json")
             return runs
         try:
-            saved = json.loads(stamp.read_text()).get("fingerprint")
+            saved = json.loads(stamp.read_text())
+            if not isinstance(saved, dict):
+                raise ValueError("not a JSON object")
         except (OSError, ValueError) as exc:
             raise UserInputError(f"{stamp}: unreadable checkpoint fingerprint ({exc}); remove "
                                  f"{self.directory} to start afresh") from None
-        if saved != self.fingerprint:
-            self.discarded_ = (f"{self.directory} holds runs of other recordings or another version of the "
-                               "model code")
-            self.clear()
+        if saved.get("fingerprint") != self.fingerprint:
+            self._discard("its runs are of other recordings, or of another version of szdyn, its generated "
+                          "model, numpy or numba")
             return runs
         for f in self._batches():
             try:
@@ -182,10 +186,13 @@ class RunCheckpoint:
                             runs[_decode_key(key)] = None          # a failed run
                             continue
                         t = z[f"t_{j}"] if f"t_{j}" in z else _from_grid(z[f"tgrid_{j}"])
+                        qb = z[f"qb_{j}"]
                         tau = z[f"tau_{j}"] if f"tau_{j}" in z else None
-                        runs[_decode_key(key)] = (t, z[f"qb_{j}"], tau)
+                        if qb.shape != t.shape or (tau is not None and tau.shape != t.shape):
+                            raise ValueError(f"run {j}: times, band angle and torque differ in length")
+                        runs[_decode_key(key)] = (t, qb, tau)
                 self._next = max(self._next, int(f.stem.split("-")[1]) + 1)
-            except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile) as exc:
+            except (OSError, ValueError, KeyError, TypeError, IndexError, EOFError, zipfile.BadZipFile) as exc:
                 raise UserInputError(f"{f}: unreadable checkpoint batch ({exc}); remove {self.directory} "
                                      "to start afresh") from None
         self.loaded_ = len(runs)
@@ -229,6 +236,19 @@ class RunCheckpoint:
         np.savez(buf, **arrays)
         atomic_write_bytes(self.directory / f"runs-{self._next:05d}.npz", buf.getvalue())
         self._next += 1
+
+    def _discard(self, why: str) -> None:
+        aside = self.directory.with_name(self.directory.name + "-previous")
+        shutil.rmtree(aside, ignore_errors=True)
+        try:
+            self.directory.rename(aside)
+            where = f"moved to {aside} (delete it, or rename it back to use it with what it was made for)"
+        except OSError as exc:
+            self.clear()
+            where = f"removed (it could not be moved aside: {exc.strerror or exc})"
+        self.discarded_ = f"checkpoint {self.directory} not used: {why}; {where}"
+        if self.warn is not None:
+            self.warn(self.discarded_)
 
     def clear(self) -> None:
         """Remove the checkpoint directory and everything in it."""

@@ -165,7 +165,8 @@ def diagnose_command(argv) -> int:
         d.fit(recs)
     except KeyboardInterrupt:
         if checkpoint is not None and checkpoint.directory.is_dir():
-            print(f"diagnose interrupted: the model runs made so far are saved in {checkpoint.directory}; "
+            upto = "made so far" if checkpoint.error_ is None else "made up to the failure said above"
+            print(f"diagnose interrupted: the model runs {upto} are saved in {checkpoint.directory}; "
                   "re-run the same command to resume", file=sys.stderr, flush=True)
         raise
     js = write_report(d, args.out)

@@ -686,9 +686,7 @@ class Diagnosis:
         self._runs = {}
         self.resumed_runs_ = 0
         if self.checkpoint is not None:
-            self._runs = self.checkpoint.load()
-            if self.checkpoint.discarded_:
-                self.log(f"not resuming: {self.checkpoint.discarded_}; starting afresh")
+            self._runs = self.checkpoint.load()     # (says itself when it does not use one)
             self.resumed_runs_ = len(self._runs)
             if self._runs:
                 self.log(f"resuming: {len(self._runs)} model runs loaded from {self.checkpoint.directory} "

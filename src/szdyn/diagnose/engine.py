@@ -265,6 +265,7 @@ class FeatureModel:
             r = self.recordings[self._index[name]]
             tasks.append((r.params.to_dict(), r.drive, r.t0, r.t1, dict(ck), r.tau is not None))
         pool = self._executor()
+        futs = {}
         if pool is None:
             results = map(_simulate, tasks)
         else:
@@ -273,16 +274,23 @@ class FeatureModel:
             futs = {j: pool.submit(_simulate, tasks[j]) for j in order}
             results = (futs[j].result() for j in range(len(tasks)))
         new = {}
+
+        def add(k, res):
+            self._cache[k] = new[k] = res
+            self.n_runs_ += 1
+            if res is None:
+                self.n_failed_ += 1
+            if self.progress is not None:
+                self.progress(1)
         try:
             for k, res in zip(todo, results):
-                self._cache[k] = new[k] = res
-                self.n_runs_ += 1
-                if res is None:
-                    self.n_failed_ += 1
-                if self.progress is not None:
-                    self.progress(1)
+                add(k, res)
         finally:
-            # also what finished before an interrupt: a resumed diagnosis need not run it again
+            # interrupted: the runs that finished out of the reading order count too (they were
+            # handed out longest first), so that a resumed diagnosis need not make them again
+            for j, fut in futs.items():
+                if todo[j] not in new and fut.done() and not fut.cancelled() and fut.exception() is None:
+                    add(todo[j], fut.result())
             if new and self.on_runs is not None:
                 self.on_runs(new)
 

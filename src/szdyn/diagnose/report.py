@@ -577,7 +577,8 @@ def _report_md(d, js) -> str:
           "; ".join(f"{k}: {u}" for k, u in UNITS.items()) + ".", "",
           f"Cost: {sum(d.timings_.values()):.0f} s wall ({d.timings_}), {d.n_runs_} model runs"
           f" ({d.n_failed_} failed with both integrators)"
-          + (f"; resumed with {d.resumed_runs_} model runs of an interrupted run, not counted here"
+          + (f"; {d.resumed_runs_} more model runs were loaded from a checkpoint (an interrupted or kept "
+             "earlier run; not counted here)"
              if getattr(d, "resumed_runs_", 0) else "") + ".", ""]
     return "\n".join(L)
 
