@@ -255,7 +255,8 @@ def _to_json(d) -> dict:
         "compared": COMPARED,
         "units": UNITS,
         "cost": {"seconds": d.timings_, "model_runs": d.n_runs_, "failed_runs": d.n_failed_,
-                 # runs loaded from a checkpoint of an interrupted run (not in model_runs or seconds)
+                 # runs loaded from a checkpoint of an earlier run, interrupted or kept (not in
+                 # model_runs or seconds)
                  "resumed_runs": getattr(d, "resumed_runs_", 0)},
     }
 
