@@ -103,9 +103,9 @@ def write_md(results, path: Path, args):
     fd = sum(not r["correct"] for r in null)
     alarms = sum(r["verdict"] != "none" for r in null)
     perr = [r["param_error"] for r in eff if r["correct"] and r.get("param_error") is not None]
-    ratios = [r["heldout_ratio"] for r in eff if r["correct"] and r.get("heldout_ratio")]
-    reach = [r["heldout_ratio"] for r in eff if r["correct"] and r.get("heldout_ratio")
-             and r.get("heldout_over_floor", 0.0) >= 3.0]
+    gained = [r for r in eff if r["correct"] and r.get("heldout_ratio")]
+    ratios = [r["heldout_ratio"] for r in gained]
+    reach = [r["heldout_ratio"] for r in gained if r.get("heldout_over_floor", 0.0) >= 3.0]
     zs = [r["param_z"] for r in eff if r["correct"] and r.get("param_z") is not None]
     prel = [r["param_error_per_mu_k"] for r in eff if r["correct"] and r.get("param_error_per_mu_k") is not None]
     pabs = [r["param_error"] for r in eff if r["correct"] and r.get("param_error_per_mu_k") is not None]
@@ -153,8 +153,8 @@ def write_md(results, path: Path, args):
     L += ["", "For a missed case, \"fitted\" and \"error\" are those of the concealed effect's refit when "
           "it was refitted but not selected; the summary counts correctly named cases only. "
           "\"before / floor\": the held-out error before over the noise floor, about the most any model "
-          "can cut it by (not exactly: a held-out recording can reproduce better than the fit ones' floor)."
-          , "",
+          "can cut it by (not exactly: a held-out recording can reproduce better than the fit ones' floor).",
+          "",
           f"Raw results: `{raw}`.", ""]
     if args.reading is not None and args.reading.is_file():
         # the human reading of the results lives in its own file, so that a re-run cannot erase it

@@ -131,8 +131,6 @@ class RunCheckpoint:
 
     Attributes
     ----------
-    loaded_ : int
-        Runs loaded by :meth:`load`.
     discarded_ : str or None
         Why an existing checkpoint was not used, and where it went (None: there was none, or
         it was used).
@@ -144,7 +142,6 @@ class RunCheckpoint:
         self.directory = Path(directory)
         self.fingerprint = fingerprint
         self.warn = warn
-        self.loaded_ = 0
         self.discarded_ = None
         self.error_ = None
         self._next = 0
@@ -195,7 +192,6 @@ class RunCheckpoint:
             except (OSError, ValueError, KeyError, TypeError, IndexError, EOFError, zipfile.BadZipFile) as exc:
                 raise UserInputError(f"{f}: unreadable checkpoint batch ({exc}); remove {self.directory} "
                                      "to start afresh") from None
-        self.loaded_ = len(runs)
         return runs
 
     def save(self, runs: dict) -> None:

@@ -682,15 +682,13 @@ class Diagnosis:
         if self.weighting not in WEIGHTINGS:
             raise ValueError(f"weighting must be one of {WEIGHTINGS}, got {self.weighting!r}")
         # model runs shared by the passes (a second pass repeats the first one's unweighted
-        # calibration exactly; residual weights are applied after the runs)
-        self._runs = {}
-        self.resumed_runs_ = 0
-        if self.checkpoint is not None:
-            self._runs = self.checkpoint.load()     # (says itself when it does not use one)
-            self.resumed_runs_ = len(self._runs)
-            if self._runs:
-                self.log(f"resuming: {len(self._runs)} model runs loaded from {self.checkpoint.directory} "
-                         "(the same path is taken again; only the runs it lacks are made)")
+        # calibration exactly; residual weights are applied after the runs), and those of an
+        # earlier run from the checkpoint (which says itself when it does not use what it found)
+        self._runs = {} if self.checkpoint is None else self.checkpoint.load()
+        self.resumed_runs_ = len(self._runs)
+        if self._runs:
+            self.log(f"resuming: {len(self._runs)} model runs loaded from {self.checkpoint.directory} "
+                     "(the same path is taken again; only the runs it lacks are made)")
         self._base_start = None
         recs = self._pass_with_exchange(list(recordings), weighted=self.weighting == "always")
         self.weighting_ = {"mode": self.weighting, "spread": self.floor_spread_, "threshold": FLOOR_SPREAD,

@@ -257,7 +257,7 @@ def _to_json(d) -> dict:
         "cost": {"seconds": d.timings_, "model_runs": d.n_runs_, "failed_runs": d.n_failed_,
                  # runs loaded from a checkpoint of an earlier run, interrupted or kept (not in
                  # model_runs or seconds)
-                 "resumed_runs": getattr(d, "resumed_runs_", 0)},
+                 "resumed_runs": d.resumed_runs_},
     }
 
 
@@ -580,7 +580,7 @@ def _report_md(d, js) -> str:
           f" ({d.n_failed_} failed with both integrators)"
           + (f"; {d.resumed_runs_} more model runs were loaded from a checkpoint (an interrupted or kept "
              "earlier run; not counted here)"
-             if getattr(d, "resumed_runs_", 0) else "") + ".", ""]
+             if d.resumed_runs_ else "") + ".", ""]
     return "\n".join(L)
 
 
