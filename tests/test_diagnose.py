@@ -666,6 +666,7 @@ class _ScriptedDiagnosis(Diagnosis):
         self.verdict_, self.selected_ = verdict, (["slider_viscous"] if verdict == "selected" else [])
         self.floor_spread_, self.weighted_ = (spread or [1.5])[0], weighted
         self.floor_, self.calibrated_ = 0.01, Namespace(rmse_fit=0.011)
+        self.phase_ = {"estimated": False}   # beyond the phase gate: no second look (tests/test_second_look.py)
         self.timings_, self.n_runs_, self.n_failed_, self.recordings_ = {"calibrate": 1.0}, 10, 0, recs
 
 

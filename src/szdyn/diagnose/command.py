@@ -19,7 +19,7 @@ class _Parser(argparse.ArgumentParser):
 
 def _build_parser():
     from .candidates import CANDIDATES
-    from .diagnosis import FLOOR_SPREAD
+    from .diagnosis import FLOOR_SPREAD, SECOND_LOOK_STEPS
 
     ap = _Parser(prog="python -m szdyn.run diagnose",
                  description="Calibrate the model to recordings, locate the mismatch, name the missing "
@@ -57,6 +57,10 @@ def _build_parser():
                     "the base model, and of each candidate's refit left above the threshold, whose trial points are "
                     "each judged with the phases estimated there (default 0: off; measured on few cases, "
                     "docs/DIAGNOSIS-DESIGN.md)")
+    ap.add_argument("--second-look", type=int, default=SECOND_LOOK_STEPS,
+                    help="before answering 'unexplained' with the calibrated base within the phase gate, run "
+                    "that pass again with this many phase-profiled steps (as --phase-steps) and answer with it "
+                    f"(default {SECOND_LOOK_STEPS}; 0: off)")
     ap.add_argument("--weighting", choices=("fallback", "always", "off"), default="fallback",
                     help="weight each recording's residual by the common noise floor over its own, so that "
                     "recordings whose impact bumps do not reproduce count less: 'fallback' (default) only in "
@@ -104,6 +108,8 @@ def diagnose_command(argv) -> int:
         raise UserInputError(f"diagnose: --unstall must be >= 0, got {args.unstall}")
     if args.phase_steps < 0:
         raise UserInputError(f"diagnose: --phase-steps must be >= 0, got {args.phase_steps}")
+    if args.second_look < 0:
+        raise UserInputError(f"diagnose: --second-look must be >= 0, got {args.second_look}")
     if args.workers is not None and args.workers < 1:
         raise UserInputError(f"diagnose: --workers must be >= 1, got {args.workers}")
     cands = None
@@ -159,7 +165,8 @@ def diagnose_command(argv) -> int:
                   probe_screen=not args.no_probe_screen, max_jac=args.max_jac,
                   polish_jac=args.polish_jac, rivals=args.rivals, exchange_split=not args.no_exchange_split,
                   weighting=args.weighting, unstall=args.unstall, fit_phase=not args.no_phase,
-                  phase_steps=args.phase_steps, restart=args.restart, checkpoint=checkpoint,
+                  phase_steps=args.phase_steps, restart=args.restart,
+                  second_look=args.second_look, checkpoint=checkpoint,
                   workers=args.workers, log=log, progress=progress)
     try:
         d.fit(recs)

@@ -227,6 +227,7 @@ def _to_json(d) -> dict:
         "calibration_status": _status(cal),
         "ablation": d.ablation_,
         "restart": d.restart_,
+        "second_look": d.second_look_,
         "not_identified": {k: d.recordings_[0].params[k] for k in FIXED_UNIDENTIFIED},
         "final": {"values": fin.values, "std": fin.std, "sensor": sensor},
         "fit": {"before": {"heldout_rmse": d.heldout_["before"]["heldout_rmse"],
@@ -322,6 +323,20 @@ def _restart_md(d) -> list:
             "model itself, where the screening and the refits' starts were made, so this diagnosis is a second "
             f"pass with the calibration started at that base. First pass: {r['seconds']:.0f} s, "
             f"{r['model_runs']} model runs.", ""]
+
+
+def _second_look_md(d) -> list:
+    """Report paragraph on a pass run again with phase-profiled steps (``second_look_``)."""
+    if not d.second_look_:
+        return []
+    f = d.second_look_
+    said = f["verdict"] + (f" ({', '.join(f['selected'])})" if f["selected"] else "")
+    return [f"**Second look.** A first pass said {said}: its calibrated base was "
+            f"{f['calibrated_fit_over_floor']:.2f}x the floor, within the phase gate, and no candidate "
+            "explained the rest. Within the gate the calibration can stop in the valley of other wheel "
+            "phases, so before answering unexplained the pass ran again with "
+            f"{f['steps']} phase-profiled step(s) (each trial point judged with the phases estimated at it); "
+            f"this diagnosis is that pass. First pass: {f['seconds']:.0f} s, {f['model_runs']} model runs.", ""]
 
 
 def _phase_md(d) -> list:
@@ -449,7 +464,7 @@ def _report_md(d, js) -> str:
               "manifest `[split]`, and run again), or they are less reproducible than the floor "
               "estimate says (near the full-slip cliff: on szdyn's grid a 2 % change of mu_k "
               "decided between tracking and slipping on one such recording).", ""]
-    L += _split_md(d) + _restart_md(d)
+    L += _split_md(d) + _restart_md(d) + _second_look_md(d)
     o = d.weighting_["other_pass"]
     if o is not None:
         said = (f"{o['verdict']}" + (f" ({', '.join(o['selected'])})" if o["selected"] else "")
