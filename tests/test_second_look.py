@@ -50,7 +50,7 @@ def test_unexplained_within_the_phase_gate_is_looked_at_again_with_steps():
     assert (d.n_runs_, d.n_failed_) == (1000, 2)
     assert d._steps == 0                                                # the next fit starts without
     md = "\n".join(_second_look_md(d))
-    assert md.startswith("**Second look.** A first pass said unexplained: its calibrated base was 2.40x the floor")
+    assert md.startswith("**Second look.** A first pass said unexplained: its calibrated base was 2.40x the floor (its wheel phases estimated")
     assert "2 phase-profiled step(s)" in md and "First pass: 100 s, 500 model runs." in md
     # whatever the second look says is the answer: here it names an effect
     d = Passes([("unexplained", 1.6, True), ("selected", 1.1, True)], second_look=3).fit([])

@@ -741,7 +741,7 @@ class Diagnosis:
         if self.second_look > 0 and self.phase_steps == 0 and self.verdict_ == "unexplained" \
                 and self.phase_["estimated"]:
             self.log(f"nothing in the library explains the mismatch ({self.calibrated_.rmse_fit / self.floor_:.2f}x "
-                     f"the floor, within the phase gate): a second look with {self.second_look} phase-profiled "
+                     f"the floor; its wheel phases estimated, within the phase gate): a second look with {self.second_look} phase-profiled "
                      "step(s) before saying so (the calibration may have stopped in another wheel phase's valley)")
             first = {**self._summary(), "steps": self.second_look}
             self._steps = self.second_look
