@@ -59,7 +59,8 @@ from .phase import PHASE_GATE, estimate_phases, identified_phases
 from .selection import SelectionRule, decide, nominate, rivals, screen
 from .split import exchange_pairs, exchanged, hidden_conditions
 
-__all__ = ["FIT_TOL", "FLOOR_SPREAD", "RESTART_RATIO", "SECOND_LOOK_STEPS", "WEIGHTINGS", "Diagnosis", "probe_additions"]
+__all__ = ["FIT_TOL", "FLOOR_SPREAD", "RESTART_RATIO", "SECOND_LOOK_STEPS", "WEIGHTINGS", "Diagnosis",
+           "probe_additions"]
 
 #: Fractions of an effect amplitude's bound at which the probe screening and every refit try the
 #: effect switched on (see :meth:`Diagnosis._starts`).
@@ -741,15 +742,17 @@ class Diagnosis:
         if self.second_look > 0 and self.phase_steps == 0 and self.verdict_ == "unexplained" \
                 and self.phase_["estimated"]:
             self.log(f"nothing in the library explains the mismatch ({self.calibrated_.rmse_fit / self.floor_:.2f}x "
-                     f"the floor; its wheel phases estimated, within the phase gate): a second look with {self.second_look} phase-profiled "
-                     "step(s) before saying so (the calibration may have stopped in another wheel phase's valley)")
+                     "the floor; its wheel phases estimated, within the phase gate): a second look with "
+                     f"{self.second_look} phase-profiled step(s) before saying so (the calibration may have "
+                     "stopped in another wheel phase's valley)")
             first = {**self._summary(), "steps": self.second_look}
             self._steps = self.second_look
             try:
                 self._pass(recs, weighted=self.weighted_)
             finally:
                 self._steps = self.phase_steps
-            self.log(f"the second look says {self.verdict_}" + (f" ({', '.join(self.selected_)})" if self.selected_ else ""))
+            self.log(f"the second look says {self.verdict_}"
+                     + (f" ({', '.join(self.selected_)})" if self.selected_ else ""))
             self.second_look_ = first
             self._count_pass("before_second_look", first)
         self.hidden_conditions_ = hidden_conditions(self.recordings_)

@@ -326,17 +326,18 @@ def _restart_md(d) -> list:
 
 
 def _second_look_md(d) -> list:
-    """Report paragraph on a pass run again with phase-profiled steps (``second_look_``)."""
+    """Report paragraph on a pass run again with phase-profiled steps (``second_look_``; it only
+    follows a first pass that said unexplained)."""
     if not d.second_look_:
         return []
     f = d.second_look_
-    said = f["verdict"] + (f" ({', '.join(f['selected'])})" if f["selected"] else "")
-    return [f"**Second look.** A first pass said {said}: its calibrated base was "
+    return [f"**Second look.** A first pass said unexplained: its calibrated base was "
             f"{f['calibrated_fit_over_floor']:.2f}x the floor (its wheel phases estimated: within the phase "
-            "gate, which is judged with the bumps of a quarter-pitch shift), and no candidate explained the rest. Within the gate the calibration can stop in the valley of other wheel "
-            "phases, so before answering unexplained the pass ran again with "
-            f"{f['steps']} phase-profiled step(s) (each trial point judged with the phases estimated at it); "
-            f"this diagnosis is that pass. First pass: {f['seconds']:.0f} s, {f['model_runs']} model runs.", ""]
+            "gate, which is judged with the bumps of a quarter-pitch shift), and no candidate explained the "
+            "rest. Within the gate the calibration can stop in the valley of other wheel phases, so before "
+            f"answering unexplained the pass ran again with {f['steps']} phase-profiled step(s) (each trial "
+            "point judged with the phases estimated at it); this diagnosis is that pass. First pass: "
+            f"{f['seconds']:.0f} s, {f['model_runs']} model runs.", ""]
 
 
 def _phase_md(d) -> list:
