@@ -9,6 +9,7 @@ for the pass itself (a real pass costs minutes); the report paragraph with it.
 """
 from types import SimpleNamespace
 
+import numpy as np
 import pytest
 
 from szdyn.diagnose.diagnosis import SECOND_LOOK_STEPS, Diagnosis
@@ -24,16 +25,24 @@ class Passes(Diagnosis):
     def __init__(self, outcomes, **kw):
         super().__init__(**kw)
         self.outcomes = list(outcomes)
-        self.steps_seen, self.weighted_seen = [], []
+        self.steps_seen, self.weighted_seen, self.starts_seen = [], [], []
 
     def _fit_pass(self, recs, weighted=False):
-        verdict, ratio, estimated = self.outcomes.pop(0)
+        # an optional fourth item: the ablation's (fit over floor, adopted), calibration over
+        # floor before it being 4.3; an adopted ablation is the pass's calibrated base
+        verdict, ratio, estimated, *ablation = self.outcomes.pop(0)
         self.steps_seen.append(self._steps)
         self.weighted_seen.append(weighted)
+        self.starts_seen.append(None if self._base_start is None else list(self._base_start))
         self.verdict_, self.selected_ = verdict, (["encoder_delay"] if verdict == "selected" else [])
         self.floor_, self.floor_spread_, self.weighted_ = 0.01, 1.5, weighted
-        self.calibrated_ = SimpleNamespace(rmse_fit=0.01 * ratio)
+        self.calibrated_ = SimpleNamespace(rmse_fit=0.01 * ratio, x=np.array([len(self.steps_seen), 7.0]))
         self.phase_ = {"estimated": estimated}
+        self.ablation_ = None
+        if ablation:
+            (ab_ratio, adopted), = ablation
+            self.ablation_ = {"candidate": "encoder_scale", "rmse_fit": 0.01 * ab_ratio,
+                              "calibrated_rmse_fit": 0.043, "adopted": adopted}
         self.heldout_beyond_floor_ = {}
         self.timings_ = {"refit": 100.0}
         self.n_runs_, self.n_failed_, self.recordings_ = 500, 1, recs
@@ -45,10 +54,11 @@ def test_unexplained_within_the_phase_gate_is_looked_at_again_with_steps():
     assert d.verdict_ == "none" and d.selected_ == []                 # the second look is the answer
     assert d.second_look_ == {"weighted": False, "verdict": "unexplained", "selected": [],
                               "calibrated_fit_over_floor": pytest.approx(2.4), "seconds": 100.0,
-                              "model_runs": 500, "failed_runs": 1, "steps": 2}
+                              "model_runs": 500, "failed_runs": 1, "steps": 2, "start": "calibration"}
     assert d.timings_ == {"before_second_look": 100.0, "refit": 100.0}
     assert (d.n_runs_, d.n_failed_) == (1000, 2)
     assert d._steps == 0                                                # the next fit starts without
+    assert d.starts_seen == [None, None]                                # from the calibration's own start
     md = "\n".join(_second_look_md(d))
     assert md.startswith("**Second look.** A first pass said unexplained: its calibrated base was 2.40x the floor (its wheel phases estimated")
     assert "2 phase-profiled step(s)" in md and "First pass: 100 s, 500 model runs." in md
@@ -62,6 +72,9 @@ def test_unexplained_within_the_phase_gate_is_looked_at_again_with_steps():
     (("none", 1.1, True), {}),                          # nothing missing
     (("selected", 1.1, True), {}),                      # an effect named
     (("unexplained", 74.0, False), {}),                 # beyond the gate: phases not estimated
+    (("unexplained", 4.3, False, (3.5, True)), {}),     # ... and the ablation's base beyond it too
+    (("unexplained", 4.3, False, (1.9, False)), {}),    # ... or not adopted (it fitted worse)
+    (("unexplained", 4.3, False, (1.9, True)), {"fit_phase": False}),   # no phases at all
     (("unexplained", 2.4, True), {"second_look": 0}),   # switched off
 ])
 def test_no_second_look_unless_unexplained_within_the_gate(outcome, kw):
@@ -95,3 +108,23 @@ def test_a_negative_second_look_is_a_clear_command_line_error(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "--second-look must be >= 0, got -1" in err and "Traceback" not in err
     assert not (tmp_path / "o").exists()
+
+
+def test_unexplained_beyond_the_gate_is_looked_at_again_from_an_ablation_within_it():
+    # null 41: the calibration stopped at 4.30x the floor (beyond the gate, so no phases), and the
+    # base model alone refitted from encoder_scale's coefficients reached 1.88x
+    d = Passes([("unexplained", 1.88, False, (1.88, True)), ("none", 1.0, True)]).fit([])
+    assert d.steps_seen == [0, 2] and d.verdict_ == "none"
+    assert d.starts_seen == [None, [1.0, 7.0]]          # calibrated from the first pass's base
+    f = d.second_look_
+    assert f["start"] == "ablation" and f["verdict"] == "unexplained" and f["steps"] == 2
+    assert f["ablation"] == {"candidate": "encoder_scale", "fit_over_floor": pytest.approx(1.88),
+                             "calibrated_fit_over_floor": pytest.approx(4.3)}
+    md = "\n".join(_second_look_md(d))
+    assert md.startswith("**Second look.** A first pass said unexplained: its calibration stopped at 4.30x the "
+                         "floor, beyond the phase gate, but the base model alone, refitted from `encoder_scale`'s "
+                         "coefficients (the ablation), fitted at 1.88x, within it.")
+    assert "2 phase-profiled step(s)" in md and "First pass: 100 s, 500 model runs." in md
+    # exactly at the gate counts as within it; the second look's answer stands whatever it is
+    d = Passes([("unexplained", 3.0, False, (3.0, True)), ("unexplained", 2.5, True)]).fit([])
+    assert d.steps_seen == [0, 2] and d.verdict_ == "unexplained" and d.second_look_["start"] == "ablation"

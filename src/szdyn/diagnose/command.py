@@ -59,8 +59,9 @@ def _build_parser():
                     "docs/DIAGNOSIS-DESIGN.md)")
     ap.add_argument("--second-look", type=int, default=SECOND_LOOK_STEPS,
                     help="before answering 'unexplained' with the calibrated base within the phase gate, run "
-                    "that pass again with this many phase-profiled steps (as --phase-steps) and answer with it "
-                    f"(default {SECOND_LOOK_STEPS}; 0: off)")
+                    "that pass again with this many phase-profiled steps (as --phase-steps) and answer with it; "
+                    "a calibration stopped beyond the gate whose ablation's base fits within it gets the same, "
+                    f"calibrated from that base (default {SECOND_LOOK_STEPS}; 0: off)")
     ap.add_argument("--weighting", choices=("fallback", "always", "off"), default="fallback",
                     help="weight each recording's residual by the common noise floor over its own, so that "
                     "recordings whose impact bumps do not reproduce count less: 'fallback' (default) only in "

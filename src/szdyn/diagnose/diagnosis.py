@@ -105,7 +105,9 @@ RESTART_RATIO = 2.0
 #: mismatch is a few floors, and the calibration can stop there in the valley of other wheel
 #: phases (null 32: 3.2x the floor, the truth 0.9x with its own phases): "unexplained" would then
 #: report a missing effect where only the search stopped short. Two steps, as measured with
-#: ``--phase-steps 2`` (docs/DIAGNOSIS-DESIGN.md, "The candidates' phase-profiled steps").
+#: ``--phase-steps 2`` (docs/DIAGNOSIS-DESIGN.md, "The candidates' phase-profiled steps"). A
+#: calibration stopped beyond the gate whose ablation's base fits within it gets the same second
+#: look, calibrated from that base (null 41: 4.30x the floor, the ablation 1.88x, then "none").
 SECOND_LOOK_STEPS = 2
 
 
@@ -224,9 +226,12 @@ class Diagnosis:
         When the answer would be "unexplained" and the calibrated base of the pass that gave it
         was within the phase gate (its wheel phases estimated), that pass is run again with this
         many phase-profiled steps (as ``phase_steps``) and its answer, whatever it is, is the
-        diagnosis's (``second_look_`` keeps the first). Default :data:`SECOND_LOOK_STEPS`; 0
-        turns it off; ignored when ``phase_steps`` > 0 (every pass already takes steps). A
-        "none" or a named effect is never looked at again, so it costs nothing there.
+        diagnosis's (``second_look_`` keeps the first). Where the calibration stopped beyond the
+        gate but the pass's ablation adopted a base within it, the pass runs again calibrated
+        from that base, with the phases and the steps (:meth:`_second_look_start`). Default
+        :data:`SECOND_LOOK_STEPS`; 0 turns it off; ignored when ``phase_steps`` > 0 (every pass
+        already takes steps). A "none" or a named effect is never looked at again, so it costs
+        nothing there.
     checkpoint : RunCheckpoint, optional
         Where model runs are saved as they finish and loaded from at the start of :meth:`fit`
         (:mod:`.checkpoint`): an interrupted diagnosis rerun with it takes the same path and
@@ -338,8 +343,10 @@ class Diagnosis:
     second_look_ : dict or None
         When the second look ran (``second_look``): what the pass before it said (``weighted``,
         ``verdict``, ``selected``, ``calibrated_fit_over_floor``, ``seconds``, ``model_runs``,
-        ``failed_runs``, included in ``timings_`` and ``n_runs_``) and the ``steps`` taken.
-        None otherwise.
+        ``failed_runs``, included in ``timings_`` and ``n_runs_``), the ``steps`` taken and its
+        ``start`` (``"calibration"`` or ``"ablation"``; with ``"ablation"`` also ``ablation``:
+        the leading ``candidate``, and the ablation's and the calibration's ``fit_over_floor``
+        and ``calibrated_fit_over_floor``). None otherwise.
     hidden_conditions_ : list of dict
         (load, travel direction) conditions that only held-out recordings of the answer's split
         have (:func:`.split.hidden_conditions`): the fit could not see what shows only there.
@@ -739,13 +746,26 @@ class Diagnosis:
             key = "weighted_pass" if other["weighted"] else "unweighted_pass"
             self._count_pass(key, other)
         self.second_look_ = None
-        if self.second_look > 0 and self.phase_steps == 0 and self.verdict_ == "unexplained" \
-                and self.phase_["estimated"]:
-            self.log(f"nothing in the library explains the mismatch ({self.calibrated_.rmse_fit / self.floor_:.2f}x "
-                     "the floor; its wheel phases estimated, within the phase gate): a second look with "
-                     f"{self.second_look} phase-profiled step(s) before saying so (the calibration may have "
-                     "stopped in another wheel phase's valley)")
-            first = {**self._summary(), "steps": self.second_look}
+        start = self._second_look_start() if self.second_look > 0 and self.phase_steps == 0 \
+            and self.verdict_ == "unexplained" else None
+        if start is not None:
+            first = {**self._summary(), "steps": self.second_look, "start": start}
+            if start == "calibration":
+                self.log(f"nothing in the library explains the mismatch ({first['calibrated_fit_over_floor']:.2f}x "
+                         "the floor; its wheel phases estimated, within the phase gate): a second look with "
+                         f"{self.second_look} phase-profiled step(s) before saying so (the calibration may have "
+                         "stopped in another wheel phase's valley)")
+            else:
+                ab = self.ablation_
+                first["ablation"] = {"candidate": ab["candidate"], "fit_over_floor": ab["rmse_fit"] / self.floor_,
+                                     "calibrated_fit_over_floor": ab["calibrated_rmse_fit"] / self.floor_}
+                self.log(f"nothing in the library explains the mismatch, and the calibration had stopped beyond "
+                         f"the phase gate ({first['ablation']['calibrated_fit_over_floor']:.2f}x the floor) where the "
+                         f"base model alone, refitted from {ab['candidate']}'s coefficients, fits within it "
+                         f"({first['ablation']['fit_over_floor']:.2f}x): a second look calibrated from there, its "
+                         f"wheel phases estimated and {self.second_look} phase-profiled step(s), before saying so")
+                # the ablation adopted this base: the pass's calibrated coefficients
+                self._base_start = self.calibrated_.x.copy()
             self._steps = self.second_look
             try:
                 self._pass(recs, weighted=self.weighted_)
@@ -757,6 +777,24 @@ class Diagnosis:
             self._count_pass("before_second_look", first)
         self.hidden_conditions_ = hidden_conditions(self.recordings_)
         return self
+
+    def _second_look_start(self) -> str | None:
+        """Where the second look of a pass that said "unexplained" starts, or None (no second look).
+
+        ``"calibration"``: the pass's calibrated base was within the phase gate (its wheel phases
+        estimated), so the pass runs again as it was, with phase-profiled steps. ``"ablation"``:
+        the calibration stopped beyond the gate, but the ablation adopted a base (the base model
+        alone refitted from the leading candidate's coefficients) that fits within
+        :data:`.phase.PHASE_GATE` of the floor; the calibration stopped in a valley of the base
+        model itself (null 41: 4.30x the floor after its continuation, the ablation 1.88x), so
+        the pass runs again calibrated from that base, where the phases are estimated.
+        """
+        if self.phase_["estimated"]:
+            return "calibration"
+        ab = getattr(self, "ablation_", None)
+        if self.fit_phase and ab and ab["adopted"] and ab["rmse_fit"] <= PHASE_GATE * self.floor_:
+            return "ablation"
+        return None
 
     def _count_pass(self, key: str, other: dict) -> None:
         """Add the cost of a pass that is not the answer (a record with ``seconds``,

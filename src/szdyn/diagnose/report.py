@@ -331,13 +331,22 @@ def _second_look_md(d) -> list:
     if not d.second_look_:
         return []
     f = d.second_look_
+    cost = f"First pass: {f['seconds']:.0f} s, {f['model_runs']} model runs."
+    if f["start"] == "ablation":
+        a = f["ablation"]
+        return [f"**Second look.** A first pass said unexplained: its calibration stopped at "
+                f"{a['calibrated_fit_over_floor']:.2f}x the floor, beyond the phase gate, but the base model "
+                f"alone, refitted from `{a['candidate']}`'s coefficients (the ablation), fitted at "
+                f"{a['fit_over_floor']:.2f}x, within it. The calibration had stopped in a valley of the base "
+                "model itself, so before answering unexplained the pass ran again calibrated from that base, "
+                f"with the wheel phases estimated and {f['steps']} phase-profiled step(s) (each trial point "
+                f"judged with the phases estimated at it); this diagnosis is that pass. {cost}", ""]
     return [f"**Second look.** A first pass said unexplained: its calibrated base was "
             f"{f['calibrated_fit_over_floor']:.2f}x the floor (its wheel phases estimated: within the phase "
             "gate, which is judged with the bumps of a quarter-pitch shift), and no candidate explained the "
             "rest. Within the gate the calibration can stop in the valley of other wheel phases, so before "
             f"answering unexplained the pass ran again with {f['steps']} phase-profiled step(s) (each trial "
-            "point judged with the phases estimated at it); this diagnosis is that pass. First pass: "
-            f"{f['seconds']:.0f} s, {f['model_runs']} model runs.", ""]
+            f"point judged with the phases estimated at it); this diagnosis is that pass. {cost}", ""]
 
 
 def _phase_md(d) -> list:
