@@ -4,8 +4,10 @@ the answer.
 
 Null 32 (out of sample) said "unexplained" with its calibration at 3.2x the floor while the truth,
 with its own wheel phases, fits at 0.9x; with two phase-profiled steps the base reached 1.0x and
-the answer was "none" (docs/DIAGNOSIS-DESIGN.md). The pass logic is tested here with a stand-in
-for the pass itself (a real pass costs minutes); the report paragraph with it.
+the answer was "none" (docs/DIAGNOSIS-DESIGN.md). A pass whose calibration stopped beyond the
+gate but whose ablation's base fits within it gets the same second look, calibrated from that base
+(null 41). The pass logic is tested here with a stand-in for the pass itself (a real pass costs
+minutes); the report paragraph with it.
 """
 from types import SimpleNamespace
 
@@ -28,8 +30,9 @@ class Passes(Diagnosis):
         self.steps_seen, self.weighted_seen, self.starts_seen = [], [], []
 
     def _fit_pass(self, recs, weighted=False):
-        # an optional fourth item: the ablation's (fit over floor, adopted), calibration over
-        # floor before it being 4.3; an adopted ablation is the pass's calibrated base
+        # an optional fourth item, the ablation: (its fit over the floor, adopted), the
+        # calibration before it having been at 4.3x; an adopted ablation becomes the pass's
+        # calibrated base, as in Diagnosis._fit_pass
         verdict, ratio, estimated, *ablation = self.outcomes.pop(0)
         self.steps_seen.append(self._steps)
         self.weighted_seen.append(weighted)
