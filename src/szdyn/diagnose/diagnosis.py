@@ -713,8 +713,10 @@ class Diagnosis:
         effect, else the unweighted one stands (``weighting_["other_pass"]`` keeps the other).
 
         With ``second_look`` (the default), an answer "unexplained" whose calibrated base was
-        within the phase gate is looked at once more: that pass again, with phase-profiled steps
-        (:meth:`_phase_step`), whose answer is final (``second_look_`` keeps the first).
+        within the phase gate, or whose ablation adopted a base within it, is looked at once more:
+        that pass again (from the ablation's base in the second case), with phase-profiled steps
+        (:meth:`_phase_step`), whose answer is final (``second_look_`` keeps the first;
+        :meth:`_second_look_start`).
         """
         if self.weighting not in WEIGHTINGS:
             raise ValueError(f"weighting must be one of {WEIGHTINGS}, got {self.weighting!r}")
@@ -791,6 +793,7 @@ class Diagnosis:
         """
         if self.phase_["estimated"]:
             return "calibration"
+        # (getattr: a scripted pass standing in for _fit_pass in the tests may not set it)
         ab = getattr(self, "ablation_", None)
         if self.fit_phase and ab and ab["adopted"] and ab["rmse_fit"] <= PHASE_GATE * self.floor_:
             return "ablation"
