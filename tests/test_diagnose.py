@@ -855,6 +855,11 @@ def test_concealed_viscous_drag_is_named_recovered_and_improves_heldout(viscous)
 def test_diagnosis_json_schema(viscous):
     truth, d, _ = viscous
     assert set(d) >= {"selected", "effects", "mismatch", "calibrated", "fit"}
+    # two loads: the staged calibration ran (the 1 kg fit recordings first) and says what it did
+    g = d["staged_calibration"]
+    assert g["load_kg"] == 1.0 and g["recordings"] and all("1kg" in n for n in g["recordings"])
+    assert 0 < g["first_rmse_fit"] and 0 < g["rmse_fit"] and g["ratio"] == 2.0
+    assert g["adopted"] == (g["rmse_fit"] * 2.0 <= g["calibrated_rmse_fit"])
     for e in d["effects"]:
         assert set(e) >= {"id", "score", "selected", "parameters", "expression", "explains"}
     for m in d["mismatch"]:

@@ -19,7 +19,7 @@ class _Parser(argparse.ArgumentParser):
 
 def _build_parser():
     from .candidates import CANDIDATES
-    from .diagnosis import FLOOR_SPREAD, SECOND_LOOK_STEPS
+    from .diagnosis import FLOOR_SPREAD, SECOND_LOOK_STEPS, STAGED_RATIO
 
     ap = _Parser(prog="python -m szdyn.run diagnose",
                  description="Calibrate the model to recordings, locate the mismatch, name the missing "
@@ -62,6 +62,12 @@ def _build_parser():
                     "that pass again with this many phase-profiled steps (as --phase-steps) and answer with it; "
                     "a calibration stopped beyond the gate whose ablation's base fits within it gets the same, "
                     f"calibrated from that base (default {SECOND_LOOK_STEPS}; 0: off)")
+    ap.add_argument("--no-staged", action="store_true",
+                    help="calibrate the base on all fit recordings at once only; by default, where that leaves a "
+                    "mismatch, it is also calibrated on the heaviest load's fit recordings first and then on "
+                    "all from there, and "
+                    f"that is used when it fits at least {STAGED_RATIO:g}x better (a calibration stopped on the "
+                    "lighter loads' plateau)")
     ap.add_argument("--weighting", choices=("fallback", "always", "off"), default="fallback",
                     help="weight each recording's residual by the common noise floor over its own, so that "
                     "recordings whose impact bumps do not reproduce count less: 'fallback' (default) only in "
@@ -167,7 +173,7 @@ def diagnose_command(argv) -> int:
                   polish_jac=args.polish_jac, rivals=args.rivals, exchange_split=not args.no_exchange_split,
                   weighting=args.weighting, unstall=args.unstall, fit_phase=not args.no_phase,
                   phase_steps=args.phase_steps, restart=args.restart,
-                  second_look=args.second_look, checkpoint=checkpoint,
+                  second_look=args.second_look, staged=not args.no_staged, checkpoint=checkpoint,
                   workers=args.workers, log=log, progress=progress)
     try:
         d.fit(recs)

@@ -225,6 +225,7 @@ def _to_json(d) -> dict:
         "calibrated": {k: cal.values[k] for k in ("k_c", "b_c", "k_imp", "mu_s", "mu_k")},
         "calibrated_std": {k: cal.std.get(k, math.nan) for k in ("k_c", "b_c", "k_imp", "mu_s", "mu_k")},
         "calibration_status": _status(cal),
+        "staged_calibration": getattr(d, "staged_", None),
         "ablation": d.ablation_,
         "restart": d.restart_,
         "second_look": d.second_look_,
@@ -310,6 +311,24 @@ def _split_md(d) -> list:
               "that recording is either less reproducible than the floor says or shows something this "
               "model does not have.", ""]
     return L
+
+
+def _staged_md(d) -> list:
+    """Report paragraph on the staged calibration (``staged_``), when it ran."""
+    g = getattr(d, "staged_", None)
+    if not g:
+        return []
+    what = (f"It fitted {g['ratio']:g}x better or more, so it was adopted: the calibration on all of them "
+            "at once had stopped where the lighter loads' recordings flip between tracking and slipping "
+            "(a plateau cut by cliffs), and everything below starts from the staged one."
+            if g["adopted"] else
+            f"Not adopted: it is taken only when it fits {g['ratio']:g}x better (a calibration that had "
+            "stopped), and the calibration on all of them at once is the one used below.")
+    return [f"**Staged calibration.** The base was also calibrated in two stages from the nominal "
+            f"coefficients: on the {g['load_kg']:g} kg fit recording(s) first ({', '.join(f'`{n}`' for n in g['recordings'])}; "
+            f"{_f(g['first_rmse_fit'])} rad/s on them), then on all fit recordings from there: "
+            f"{_f(g['rmse_fit'])} rad/s, against {_f(g['calibrated_rmse_fit'])} rad/s from the nominal start. "
+            + what, ""]
 
 
 def _restart_md(d) -> list:
@@ -520,6 +539,7 @@ def _report_md(d, js) -> str:
           "standard deviations off. Judge the fit, not the coefficients.", "",
           f"Fit RMSE {_f(d.calibrated_.rmse_fit)} rad/s ({d.calibrated_.rmse_fit / d.floor_:.2f}x the floor); "
           f"the fit {_status(d.calibrated_)}.", "",
+          *_staged_md(d),
           "## Where the mismatch is (calibrated base model)", ""]
     held = [m for m in d.location_["mismatch"] if m["recording"] in d.heldout_beyond_floor_]
     if js["mismatch"]:
