@@ -65,9 +65,8 @@ def _build_parser():
     ap.add_argument("--no-staged", action="store_true",
                     help="calibrate the base on all fit recordings at once only; by default, where that leaves a "
                     "mismatch, it is also calibrated on the heaviest load's fit recordings first and then on "
-                    "all from there, and "
-                    f"that is used when it fits at least {STAGED_RATIO:g}x better (a calibration stopped on the "
-                    "lighter loads' plateau)")
+                    f"all from there, and that is used when it fits at least {STAGED_RATIO:g}x better (a "
+                    "calibration stopped on the lighter loads' plateau)")
     ap.add_argument("--weighting", choices=("fallback", "always", "off"), default="fallback",
                     help="weight each recording's residual by the common noise floor over its own, so that "
                     "recordings whose impact bumps do not reproduce count less: 'fallback' (default) only in "

@@ -1047,7 +1047,7 @@ class Diagnosis:
             base_mc, _ = base_h.point(cal.x)
             own = self._noise_floor(model, recs, fit_idx, all_idx, base_mc)
             lap("noise_floor")
-            # 2-. before a mismatch is read from it, a calibration that may have stopped on the
+            # before a mismatch is read from it, a calibration that may have stopped on the
             # lighter loads' plateau is tried in stages (not in a pass started from another base)
             self.staged_ = None
             if self.staged and self._base_start is None and self.rule.mismatch(cal.rmse_fit, self.floor_):

@@ -225,7 +225,7 @@ def _to_json(d) -> dict:
         "calibrated": {k: cal.values[k] for k in ("k_c", "b_c", "k_imp", "mu_s", "mu_k")},
         "calibrated_std": {k: cal.std.get(k, math.nan) for k in ("k_c", "b_c", "k_imp", "mu_s", "mu_k")},
         "calibration_status": _status(cal),
-        "staged_calibration": getattr(d, "staged_", None),
+        "staged_calibration": d.staged_,
         "ablation": d.ablation_,
         "restart": d.restart_,
         "second_look": d.second_look_,
@@ -315,7 +315,7 @@ def _split_md(d) -> list:
 
 def _staged_md(d) -> list:
     """Report paragraph on the staged calibration (``staged_``), when it ran."""
-    g = getattr(d, "staged_", None)
+    g = d.staged_
     if not g:
         return []
     what = (f"It fitted {g['ratio']:g}x better or more, so it was adopted: the calibration on all of them "
