@@ -56,3 +56,38 @@ def smooth_case():
     x0[0] = 0.5 * 0.5 * (1.0 + 2.0)  # wheel angle at t = 0 consistent with the drive
     x0[n] = 2.0  # wheel speed at t = 0
     return x0, p, drive, 1.0
+
+
+@pytest.fixture
+def diagnose_options(monkeypatch, tmp_path):
+    """``options(flags)`` -> the keyword arguments ``python -m szdyn.run diagnose`` passes to
+    :class:`szdyn.diagnose.diagnosis.Diagnosis` with those command-line flags. The command's inputs
+    are stubbed (a manifest of no recordings) and the Diagnosis is stopped at its construction."""
+    from types import SimpleNamespace
+
+    import szdyn.diagnose.data as data
+    import szdyn.manifest as manifest
+    from szdyn.diagnose import diagnosis as dmod
+    from szdyn.run import main as run_main
+
+    seen = {}
+
+    class Stop(Exception):
+        pass
+
+    def init(self, *a, **kw):
+        seen.update(kw)
+        raise Stop
+
+    monkeypatch.setattr(manifest, "read_manifest", lambda path: SimpleNamespace(entries=[], heldout=["a.csv"]))
+    monkeypatch.setattr(data, "prepare", lambda man: [])
+    monkeypatch.setattr(dmod.Diagnosis, "__init__", init)
+
+    def options(flags):
+        seen.clear()
+        with pytest.raises(Stop):
+            run_main(["diagnose", str(tmp_path / "m.toml"), "--out", str(tmp_path / "o"), "--quiet",
+                      "--no-checkpoint", *flags])
+        return dict(seen)
+
+    return options

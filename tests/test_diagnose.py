@@ -20,7 +20,7 @@ from szdyn.diagnose.diagnosis import Diagnosis, probe_additions
 from szdyn.diagnose.engine import apply_sensor_transform, model_speed
 from szdyn.diagnose.fit import Hypothesis, fit_hypothesis, jacobian, linear_step
 from szdyn.diagnose.locate import FEATURES
-from szdyn.diagnose.selection import Decision, SelectionRule, decide, nominate, rivals, screen
+from szdyn.diagnose.selection import Decision, SelectionRule, decide, nominate, rivals, screen, settled
 from szdyn.diagnose.split import choose_heldout, exchange_pairs, exchanged, with_heldout
 from szdyn.params import param_names
 from szdyn.errors import UserInputError
@@ -265,6 +265,26 @@ def test_rivals_are_the_next_screened_candidates_when_the_winner_leaves_the_fit_
     assert rivals(rule, ["encoder_scale"], 2.0e-2, 1e-2, ranking, refitted, 2) == []
     assert rivals(rule, [], math.nan, 1e-2, ranking, refitted, 2) == []
     assert rivals(rule, ["encoder_scale"], 4.7e-2, 1e-2, ranking, refitted, 0) == []
+
+
+def test_a_candidate_within_the_rival_floor_settles_the_further_starts_of_the_others():
+    rule, floor = SelectionRule(), 1e-2
+    # load_lift seed 24: load_lift at 1.8 floors (held out 0.4641 -> 0.0144), then
+    # wheel_band_traction's first start at 18 %: its second and fourth starts took ~1650 s
+    lead = {"eligible": True, "rmse_fit": 1.8e-2, "heldout_rmse": 1.44e-2}
+    refits = {"friction_asymmetry": {"eligible": True, "rmse_fit": 7.6e-2, "heldout_rmse": 0.14},   # partial
+              "load_lift": lead}
+    assert settled(rule, refits, floor, heldout_before=0.4641, exclude="wheel_band_traction") == "load_lift"
+    assert settled(rule, refits, floor, heldout_before=0.4641, exclude="load_lift") is None   # not its own
+    # the boundary is rule.rival_floor, as for rivals
+    at = {"load_lift": {**lead, "rmse_fit": rule.rival_floor * floor}}
+    above = {"load_lift": {**lead, "rmse_fit": rule.rival_floor * floor * (1 + 1e-9)}}
+    assert settled(rule, at, floor, heldout_before=0.4641) == "load_lift"
+    assert settled(rule, above, floor, heldout_before=0.4641) is None
+    # not eligible (e.g. it does not generalise): settles nothing
+    assert settled(rule, {"load_lift": {**lead, "eligible": False}}, floor, heldout_before=0.4641) is None
+    # no held-out recordings: the fit alone decides
+    assert settled(rule, {"load_lift": {**lead, "heldout_rmse": math.nan}}, floor, heldout_before=None) == "load_lift"
 
 
 def test_linear_screening_recovers_a_linear_effect():
@@ -656,6 +676,7 @@ class _ScriptedDiagnosis(Diagnosis):
     recordings' own floors]) per pass."""
 
     def __init__(self, script, **kw):
+        kw.setdefault("heavy_look", False)   # (tests/test_heavy_look.py)
         super().__init__(**kw)
         self.script, self.seen, self.weighted_seen = list(script), [], []
 
@@ -892,6 +913,7 @@ def test_diagnosis_json_schema(viscous):
     # drag being real, did not fit as well
     assert d["ablation"]["candidate"] == "slider_viscous" and not d["ablation"]["adopted"]
     assert d["restart"] is None            # (off by default)
+    assert d["heavy_look"] is None         # (only after "unexplained")
     # the effect parameter comes with its (local) standard deviation
     sel = next(e for e in d["effects"] if e["selected"])
     assert sel["primary"]["std"] == pytest.approx(sel["std"]["c_visc"])

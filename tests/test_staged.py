@@ -18,7 +18,6 @@ import pytest
 from szdyn.diagnose import diagnosis as dmod
 from szdyn.diagnose.diagnosis import STAGED_RATIO, Diagnosis
 from szdyn.diagnose.report import _staged_md
-from szdyn.run import main as run_main
 
 
 def _recs(loads):
@@ -86,25 +85,6 @@ def test_report_paragraph_says_what_was_adopted():
     assert _staged_md(SimpleNamespace(staged_=None)) == []
 
 
-def test_cli_turns_it_off(monkeypatch, tmp_path):
-    seen = {}
-
-    class Stop(Exception):
-        pass
-
-    def init(self, *a, **kw):
-        seen.update(kw)
-        raise Stop
-
-    # the command's inputs stubbed: only the options it passes on are looked at
-    import szdyn.diagnose.data as data
-    import szdyn.manifest as manifest
-    monkeypatch.setattr(manifest, "read_manifest", lambda path: SimpleNamespace(entries=[], heldout=["a.csv"]))
-    monkeypatch.setattr(data, "prepare", lambda man: [])
-    monkeypatch.setattr(dmod.Diagnosis, "__init__", init)
-    for flags, want in (([], True), (["--no-staged"], False)):
-        seen.clear()
-        with pytest.raises(Stop):
-            run_main(["diagnose", str(tmp_path / "m.toml"), "--out", str(tmp_path / "o"), "--quiet",
-                      "--no-checkpoint", *flags])
-        assert seen["staged"] is want, flags
+def test_cli_turns_it_off(diagnose_options):
+    assert diagnose_options([])["staged"] is True
+    assert diagnose_options(["--no-staged"])["staged"] is False

@@ -67,6 +67,11 @@ def _build_parser():
                     "mismatch, it is also calibrated on the heaviest load's fit recordings first and then on "
                     f"all from there, and that is used when it fits at least {STAGED_RATIO:g}x better (a "
                     "calibration stopped on the lighter loads' plateau)")
+    ap.add_argument("--no-heavy-look", action="store_true",
+                    help="answer 'unexplained' when nothing explains the mismatch on every recording; by "
+                    "default, where the recordings have two loads or more, the diagnosis then runs once more "
+                    "on the heaviest load's recordings alone (it needs a fit and a held-out one there) and "
+                    "answers with an effect named there, reporting how the other recordings fare")
     ap.add_argument("--weighting", choices=("fallback", "always", "off"), default="fallback",
                     help="weight each recording's residual by the common noise floor over its own, so that "
                     "recordings whose impact bumps do not reproduce count less: 'fallback' (default) only in "
@@ -172,7 +177,8 @@ def diagnose_command(argv) -> int:
                   polish_jac=args.polish_jac, rivals=args.rivals, exchange_split=not args.no_exchange_split,
                   weighting=args.weighting, unstall=args.unstall, fit_phase=not args.no_phase,
                   phase_steps=args.phase_steps, restart=args.restart,
-                  second_look=args.second_look, staged=not args.no_staged, checkpoint=checkpoint,
+                  second_look=args.second_look, staged=not args.no_staged,
+                  heavy_look=not args.no_heavy_look, checkpoint=checkpoint,
                   workers=args.workers, log=log, progress=progress)
     try:
         d.fit(recs)

@@ -63,7 +63,9 @@ held-out RMSEs:
    floor, far off in k_imp and mu_k) shortlisted encoder_scale and wheel_band_traction, and
    encoder_scale won at 4.7 floors while the drag, ranked third, was never refitted. Correctly
    named cases of the grid ended within 1.9 floors; four of seeds 13 and 14 at 2.9-3.9 (and
-   load_lift seed 14 at 21, by the held-out arm of rule 3).
+   load_lift seed 14 at 21, by the held-out arm of rule 3). Conversely, once a candidate that
+   explains the mismatch is within ``rival_floor`` floors, the candidates refitted after it get
+   their first start only, not the further starts that rescue a miss (:func:`settled`).
 6. Other such candidates whose fit is within ``min_dbic`` of the selected one
    (``n_eff ln(rss_other / rss_selected) < min_dbic``) are reported as **indistinguishable**.
 """
@@ -75,7 +77,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.optimize import lsq_linear
 
-__all__ = ["SelectionRule", "Decision", "decide", "nominate", "rivals", "screen"]
+__all__ = ["SelectionRule", "Decision", "decide", "nominate", "rivals", "screen", "settled"]
 
 
 @dataclass(frozen=True)
@@ -248,3 +250,32 @@ def rivals(rule: SelectionRule, selected, rmse_selected: float, floor: float, ra
     if n <= 0 or not selected or rmse_selected <= rule.rival_floor * floor:
         return []
     return [c for c in ranking if c not in refitted][:n]
+
+
+def settled(rule: SelectionRule, refits: dict, floor: float, *, heldout_before: float | None,
+            exclude: str | None = None) -> str | None:
+    """A refitted candidate that already settles the answer: eligible, explaining the mismatch
+    (:meth:`SelectionRule.explains_mismatch`) and leaving the fit within ``rule.rival_floor``
+    noise floors, the criterion under which :func:`rivals` refits nothing more.
+
+    Parameters
+    ----------
+    refits : dict of str -> dict
+        Per candidate: ``eligible``, ``rmse_fit`` (rad/s) and ``heldout_rmse`` (rad/s).
+    floor : float
+        Noise floor (rad/s).
+    heldout_before : float or None
+        Held-out RMSE of the calibrated base (rad/s); None: no held-out recordings.
+    exclude : str, optional
+        The candidate being refitted (it does not settle its own starts).
+
+    Returns
+    -------
+    str or None
+        The first such candidate's id (in ``refits`` order), or None.
+    """
+    for k, v in refits.items():
+        if k != exclude and v["eligible"] and v["rmse_fit"] <= rule.rival_floor * floor \
+                and rule.explains_mismatch(v["rmse_fit"], floor, h0=heldout_before, hc=v["heldout_rmse"]):
+            return k
+    return None
