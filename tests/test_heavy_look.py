@@ -33,11 +33,12 @@ class Passes(Diagnosis):
     """A Diagnosis whose passes are scripted: each ``_fit_pass`` takes the next verdict and records
     the recordings it was given."""
 
-    def __init__(self, verdicts, **kw):
+    def __init__(self, verdicts, fit_over_floor=1.09, **kw):
         kw.setdefault("second_look", 0)
         super().__init__(**kw)
         self.verdicts = list(verdicts)
         self.recs_seen = []
+        self.fit_over_floor = fit_over_floor      # the named model's, in the look
 
     def _fit_pass(self, recs, weighted=False):
         verdict = self.verdicts.pop(0)
@@ -47,7 +48,8 @@ class Passes(Diagnosis):
         self.floor_, self.floor_spread_, self.weighted_ = 0.005, 1.2, weighted
         h = SimpleNamespace(point=lambda x, n=n: ({"k_c": float(n)}, {}))
         self.calibrated_ = SimpleNamespace(rmse_fit=0.005 * 6.7, x=np.zeros(1), hypothesis=h)
-        self.final_ = SimpleNamespace(x=np.ones(1), hypothesis=SimpleNamespace(point=lambda x: ({"k_drift": -0.03}, {})))
+        self.final_ = SimpleNamespace(x=np.ones(1), rmse_fit=0.005 * self.fit_over_floor,
+                                      hypothesis=SimpleNamespace(point=lambda x: ({"k_drift": -0.03}, {})))
         self.phase_ = {"estimated": True}
         self.ablation_ = None
         self.heldout_beyond_floor_ = {}
@@ -85,6 +87,7 @@ def test_an_effect_named_on_the_heaviest_load_alone_is_the_answer(others):
     assert d.verdict_ == "selected" and d.selected_ == ["friction_drift"]
     g = d.heavy_look_
     assert g["ran"] and g["adopted"] and g["load_kg"] == 1.0 and g["selected"] == ["friction_drift"]
+    assert g["fit_over_floor"] == pytest.approx(1.09)
     # the other recordings reproduced with the calibrated and the updated model of the look
     (names, points, floor), = others
     assert names == ["r0_0.5kg_fit.csv", "r1_0.5kg_heldout.csv", "r2_0.5kg_fit.csv"] and floor == 0.005
@@ -106,11 +109,27 @@ def test_nothing_named_on_the_heaviest_load_leaves_the_answer_unexplained(others
     assert d.verdict_ == "unexplained" and d.selected_ == [] and others == []
     assert d.recordings_ == SIX                            # the first pass's state is back
     g = d.heavy_look_
+    assert math.isnan(g.pop("fit_over_floor"))
     assert g == {"ran": True, "load_kg": 1.0, "recordings": ["r3_1kg_heldout.csv", "r4_1kg_fit.csv", "r5_1kg_fit.csv"],
                  "verdict": said, "selected": [], "adopted": False, "seconds": 200.0, "model_runs": 1000}
     assert d.timings_ == {"heavy_look": 200.0, "refit": 100.0} and d.n_runs_ == 1500
     md = " ".join(_heavy_look_md(d))
     assert f"it said {said}, and the answer stays unexplained" in md
+
+
+@pytest.mark.parametrize("over, adopted", [(2.0, True), (2.0 * (1 + 1e-9), False), (2.94, False)])
+def test_an_effect_named_there_must_fit_within_the_rival_floor(others, over, adopted):
+    # slider_viscous seed 20: its 1 kg recordings alone named encoder_scale at 2.94 floors (the
+    # drag was never refitted); a fallback after the whole library failed asks for rule.rival_floor
+    d = Passes(["unexplained", "selected"], fit_over_floor=over).fit(SIX)
+    g = d.heavy_look_
+    assert g["verdict"] == "selected" and g["fit_over_floor"] == pytest.approx(over)
+    assert g["adopted"] is adopted and (d.verdict_ == "selected") is adopted and (len(others) == 1) is adopted
+    if not adopted:
+        assert d.recordings_ == SIX and d.selected_ == []
+        md = " ".join(_heavy_look_md(d))
+        assert f"it said selected (`friction_drift`, but leaving the fit {over:.2f}x the floor" in md
+        assert "the answer stays unexplained" in md
 
 
 @pytest.mark.parametrize("first, kw", [("none", {}), ("selected", {}), ("unexplained", {"heavy_look": False})])

@@ -71,7 +71,8 @@ def _build_parser():
                     help="answer 'unexplained' when nothing explains the mismatch on every recording; by "
                     "default, where the recordings have two loads or more, the diagnosis then runs once more "
                     "on the heaviest load's recordings alone (it needs a fit and a held-out one there) and "
-                    "answers with an effect named there, reporting how the other recordings fare")
+                    "answers with an effect named there that fits them within 2 noise floors, reporting how "
+                    "the other recordings fare")
     ap.add_argument("--weighting", choices=("fallback", "always", "off"), default="fallback",
                     help="weight each recording's residual by the common noise floor over its own, so that "
                     "recordings whose impact bumps do not reproduce count less: 'fallback' (default) only in "

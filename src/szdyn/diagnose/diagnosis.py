@@ -261,8 +261,9 @@ class Diagnosis:
         When the answer would still be "unexplained" (after the second look) and the recordings
         have two loads or more, run the diagnosis once more on the heaviest load's recordings
         alone, with their roles (it needs a fit and a held-out one there), and answer with it if
-        it names an effect; the other recordings are then reproduced with the named model and
-        reported (:mod:`.heavy`). Its "none" or "unexplained" leaves the answer "unexplained".
+        it names an effect that fits them within ``rule.rival_floor`` noise floors; the other
+        recordings are then reproduced with the named model and reported (:mod:`.heavy`).
+        Anything else leaves the answer "unexplained".
         Default True.
     checkpoint : RunCheckpoint, optional
         Where model runs are saved as they finish and loaded from at the start of :meth:`fit`
@@ -383,7 +384,9 @@ class Diagnosis:
         None unless the answer was "unexplained" on every recording and ``heavy_look`` is on.
         Then ``ran``; if False, ``why`` (e.g. one load, no held-out recording at the heaviest).
         If True: ``load_kg``, its ``recordings``, the ``verdict`` and ``selected`` of the pass
-        on them alone and whether it is the answer (``adopted``: it named an effect). Adopted,
+        on them alone, the named model's ``fit_over_floor`` (NaN if none) and whether it is the
+        answer (``adopted``: it named an effect that fits within ``rule.rival_floor`` noise
+        floors). Adopted,
         also ``other_recordings`` (per recording left out: ``role``, ``load_kg``, the RMSE of
         the ``calibrated`` and the ``updated`` model of that pass, rad/s, and each over the
         floor, every model from its own estimated wheel phases) and ``every_recording`` (what the
@@ -773,7 +776,8 @@ class Diagnosis:
 
         With ``heavy_look`` (the default), an answer still "unexplained" on recordings of two
         loads or more is looked at once more on the heaviest load's recordings alone
-        (:meth:`_heavy_look`, :mod:`.heavy`): an effect named there is the answer.
+        (:meth:`_heavy_look`, :mod:`.heavy`): an effect named there, fitting within
+        ``rule.rival_floor`` noise floors, is the answer.
         """
         if self.weighting not in WEIGHTINGS:
             raise ValueError(f"weighting must be one of {WEIGHTINGS}, got {self.weighting!r}")
@@ -857,11 +861,19 @@ class Diagnosis:
         state = dict(self.__dict__)
         self._base_start = None
         self._pass(sub, weighted=self.weighting == "always")
+        # a fallback after the whole library failed: the effect must reproduce the heaviest load
+        # within rival_floor noise floors, the standard under which nothing more is tried
+        # (slider_viscous seed 20: its 1 kg recordings alone named encoder_scale at 2.94 floors,
+        # the drag never refitted; the correct names of this look ended at 0.98-1.22)
+        over = self.final_.rmse_fit / self.floor_ if self.verdict_ == "selected" else math.nan
         look = {"ran": True, "load_kg": heavy, "recordings": names, "verdict": self.verdict_,
-                "selected": list(self.selected_), "adopted": self.verdict_ == "selected"}
+                "selected": list(self.selected_), "fit_over_floor": over,
+                "adopted": self.verdict_ == "selected" and over <= self.rule.rival_floor}
         if not look["adopted"]:
             other = self._summary()
-            self.log(f"the {heavy:g} kg recordings alone say {self.verdict_}: the answer stays unexplained")
+            said = self.verdict_ + (f" ({', '.join(self.selected_)}, leaving the fit {over:.2f}x the floor, "
+                                    f"above {self.rule.rival_floor:g}x)" if self.selected_ else "")
+            self.log(f"the {heavy:g} kg recordings alone say {said}: the answer stays unexplained")
             self.__dict__.update(state)
             self.heavy_look_ = {**look, "seconds": other["seconds"], "model_runs": other["model_runs"]}
             self._count_pass("heavy_look", other)

@@ -6,8 +6,9 @@ with the wheel's phase, so their fit cost is a plateau cut by cliffs around a ba
 the coefficients' own uncertainty (docs/DIAGNOSIS-DESIGN.md, "The truth's narrow basin"). The
 heavier load's recordings are smooth in the coefficients. Where every recording together leaves
 the mismatch unexplained, the diagnosis is run once more on the heaviest load's recordings only
-(their own fit and held-out roles), and a named effect there is the answer, with what it does on
-the other recordings reported beside it (:func:`other_loads`).
+(their own fit and held-out roles), and an effect named there that fits them within
+``rule.rival_floor`` noise floors is the answer, with what it does on the other recordings
+reported beside it (:func:`other_loads`).
 
 Measured (docs/DIAGNOSIS-DESIGN.md, "The heaviest load alone"): friction_drift seed 24, which
 every recording together left unexplained (the truth, each recording at its own wheel phase, fits

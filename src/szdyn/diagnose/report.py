@@ -380,7 +380,9 @@ def _heavy_look_md(d) -> list:
     if not g["ran"]:
         return [f"**Heaviest load alone: not looked at** ({g['why']}).", ""]
     if not g["adopted"]:
-        said = g["verdict"] + (f" ({', '.join(g['selected'])})" if g["selected"] else "")
+        said = g["verdict"] + (f" ({', '.join('`' + k + '`' for k in g['selected'])}, but leaving the fit "
+                               f"{g['fit_over_floor']:.2f}x the floor, where this fallback asks for "
+                               f"{d.rule.rival_floor:g}x or less)" if g["selected"] else "")
         return [f"**Heaviest load alone.** Nothing explained the mismatch on every recording, so the "
                 f"diagnosis ran once more on the {g['load_kg']:g} kg recordings alone "
                 f"({', '.join('`' + k + '`' for k in g['recordings'])}); it said {said}, and the answer "
