@@ -269,22 +269,22 @@ def test_rivals_are_the_next_screened_candidates_when_the_winner_leaves_the_fit_
 
 def test_a_candidate_within_the_rival_floor_settles_the_further_starts_of_the_others():
     rule, floor = SelectionRule(), 1e-2
-    # load_lift seed 24: load_lift at 1.8 floors (held out 0.4641 -> 0.0144), then
-    # wheel_band_traction's first start at 18 %: its second and fourth starts took ~1650 s
-    lead = {"eligible": True, "rmse_fit": 1.8e-2, "heldout_rmse": 1.44e-2}
-    refits = {"friction_asymmetry": {"eligible": True, "rmse_fit": 7.6e-2, "heldout_rmse": 0.14},   # partial
+    # load_lift seed 24: load_lift at 1.8 floors, then wheel_band_traction's first start at 18 %:
+    # its second and fourth starts took ~1650 s
+    lead = {"eligible": True, "rmse_fit": 1.8e-2}
+    refits = {"friction_asymmetry": {"eligible": True, "rmse_fit": 7.6e-2},   # partial
               "load_lift": lead}
-    assert settled(rule, refits, floor, heldout_before=0.4641, exclude="wheel_band_traction") == "load_lift"
-    assert settled(rule, refits, floor, heldout_before=0.4641, exclude="load_lift") is None   # not its own
+    assert settled(rule, refits, floor, exclude="wheel_band_traction") == "load_lift"
+    assert settled(rule, refits, floor, exclude="load_lift") is None   # not its own
     # the boundary is rule.rival_floor, as for rivals
-    at = {"load_lift": {**lead, "rmse_fit": rule.rival_floor * floor}}
-    above = {"load_lift": {**lead, "rmse_fit": rule.rival_floor * floor * (1 + 1e-9)}}
-    assert settled(rule, at, floor, heldout_before=0.4641) == "load_lift"
-    assert settled(rule, above, floor, heldout_before=0.4641) is None
+    assert settled(rule, {"load_lift": {**lead, "rmse_fit": rule.rival_floor * floor}}, floor) == "load_lift"
+    assert settled(rule, {"load_lift": {**lead, "rmse_fit": rule.rival_floor * floor * (1 + 1e-9)}}, floor) is None
     # not eligible (e.g. it does not generalise): settles nothing
-    assert settled(rule, {"load_lift": {**lead, "eligible": False}}, floor, heldout_before=0.4641) is None
-    # no held-out recordings: the fit alone decides
-    assert settled(rule, {"load_lift": {**lead, "heldout_rmse": math.nan}}, floor, heldout_before=None) == "load_lift"
+    assert settled(rule, {"load_lift": {**lead, "eligible": False}}, floor) is None
+    # a rule whose rival floor lies beyond max_remaining: only a candidate that explains the mismatch
+    wide = SelectionRule(rival_floor=6.0)
+    assert settled(wide, {"load_lift": {**lead, "rmse_fit": 5.5 * floor}}, floor) is None
+    assert settled(wide, {"load_lift": {**lead, "rmse_fit": 4.9 * floor}}, floor) == "load_lift"
 
 
 def test_linear_screening_recovers_a_linear_effect():

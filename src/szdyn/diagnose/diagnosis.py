@@ -1305,10 +1305,8 @@ class Diagnosis:
                               mismatch=self.mismatch_, floor=self.floor_,
                               heldout_before=h0 if held_idx else None)
             def settled_by(cid):
-                return settled(self.rule, {k: {"eligible": v["eligible"], "rmse_fit": v["result"].rmse_fit,
-                                               "heldout_rmse": v["heldout_rmse"]}
-                                           for k, v in self.refits_.items()},
-                               self.floor_, heldout_before=h0 if held_idx else None, exclude=cid)
+                return settled(self.rule, {k: {"eligible": v["eligible"], "rmse_fit": v["result"].rmse_fit}
+                                           for k, v in self.refits_.items()}, self.floor_, exclude=cid)
 
             def refit(cid):
                 """Refit base + candidate ``cid`` from its best start, with the second, third and

@@ -56,7 +56,7 @@ def heaviest_load(recs):
 
 
 def other_loads(recs, points: dict, *, floor: float, cache: dict, workers=None, progress=None,
-                on_runs=None) -> dict:
+                on_runs=None) -> tuple:
     """How models fitted on the heaviest load reproduce the other recordings.
 
     Each model runs every recording of ``recs`` from its best wheel phase (estimated at that
@@ -86,7 +86,7 @@ def other_loads(recs, points: dict, *, floor: float, cache: dict, workers=None, 
     idx = list(range(len(recs)))
     with FeatureModel(recs, workers=workers, progress=progress, cache=cache, on_runs=on_runs) as model:
         for name, pt in points.items():
-            model.phases = {}
+            # (the scan sets each run's q_w0 itself: the phases of the previous model do not enter)
             model.phases = identified_phases(estimate_phases(model, pt, idx))
             for i in idx:
                 e = rms(model.residuals([pt], [i])[0])

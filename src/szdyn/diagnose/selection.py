@@ -252,20 +252,17 @@ def rivals(rule: SelectionRule, selected, rmse_selected: float, floor: float, ra
     return [c for c in ranking if c not in refitted][:n]
 
 
-def settled(rule: SelectionRule, refits: dict, floor: float, *, heldout_before: float | None,
-            exclude: str | None = None) -> str | None:
-    """A refitted candidate that already settles the answer: eligible, explaining the mismatch
-    (:meth:`SelectionRule.explains_mismatch`) and leaving the fit within ``rule.rival_floor``
-    noise floors, the criterion under which :func:`rivals` refits nothing more.
+def settled(rule: SelectionRule, refits: dict, floor: float, *, exclude: str | None = None) -> str | None:
+    """A refitted candidate that already settles the answer: eligible and leaving the fit within
+    ``rule.rival_floor`` noise floors, the criterion under which :func:`rivals` refits nothing
+    more (and within ``rule.max_remaining``, so that it explains the mismatch too).
 
     Parameters
     ----------
     refits : dict of str -> dict
-        Per candidate: ``eligible``, ``rmse_fit`` (rad/s) and ``heldout_rmse`` (rad/s).
+        Per candidate: ``eligible`` and ``rmse_fit`` (rad/s).
     floor : float
         Noise floor (rad/s).
-    heldout_before : float or None
-        Held-out RMSE of the calibrated base (rad/s); None: no held-out recordings.
     exclude : str, optional
         The candidate being refitted (it does not settle its own starts).
 
@@ -274,8 +271,5 @@ def settled(rule: SelectionRule, refits: dict, floor: float, *, heldout_before: 
     str or None
         The first such candidate's id (in ``refits`` order), or None.
     """
-    for k, v in refits.items():
-        if k != exclude and v["eligible"] and v["rmse_fit"] <= rule.rival_floor * floor \
-                and rule.explains_mismatch(v["rmse_fit"], floor, h0=heldout_before, hc=v["heldout_rmse"]):
-            return k
-    return None
+    lim = min(rule.rival_floor, rule.max_remaining) * floor
+    return next((k for k, v in refits.items() if k != exclude and v["eligible"] and v["rmse_fit"] <= lim), None)
