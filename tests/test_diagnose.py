@@ -1027,6 +1027,32 @@ def test_fallback_weighted_pass_on_null_recordings_keeps_none(null, tmp_path, mo
     assert "**Weighted pass tried.**" in (tmp_path / "f" / "report.md").read_text()
 
 
+def test_starts_skipped_for_a_settler_are_made_once_it_settles_nothing(viscous, tmp_path, monkeypatch):
+    """A settler judged ineligible after the refits (ablation, held-out phases): the candidates it
+    stopped get their further starts before the decision. Made to happen with a settler that
+    settles each candidate's first look only."""
+    from szdyn.diagnose import diagnosis
+
+    _, d0, out = viscous
+    asked = {}
+
+    def first_look_only(rule, refits, floor, *, exclude=None):
+        asked[exclude] = asked.get(exclude, 0) + 1
+        return "phantom" if asked[exclude] == 1 else None
+
+    monkeypatch.setattr(diagnosis, "settled", first_look_only)
+    man = out.parent / "data" / "manifest.toml"
+    assert run_main(["diagnose", str(man), "--out", str(tmp_path / "u"), *SMALL]) == 0
+    d = json.loads((tmp_path / "u" / "diagnosis.json").read_text())
+    missed = [e["id"] for e in d["effects"] if e["id"] in asked and asked[e["id"]] == 2]
+    # (asked twice: once at its first start, once before the decision)
+    assert missed, "no refitted candidate missed at its first start: nothing was skipped"
+    assert "refit_unsettled" in d["cost"]["seconds"]
+    report = (tmp_path / "u" / "report.md").read_text()
+    assert "no further starts" not in report and "phantom" not in report
+    assert d["selected"] == d0["selected"] == ["slider_viscous"]
+
+
 def test_models_sharing_a_cache_run_each_point_once_whatever_the_roles(null):
     """A second pass (weighted, or with the split exchanged) repeats runs of the first: with a
     shared cache they are not run again, and give the same speeds with the roles reordered."""

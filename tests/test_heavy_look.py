@@ -33,16 +33,20 @@ class Passes(Diagnosis):
     """A Diagnosis whose passes are scripted: each ``_fit_pass`` takes the next verdict and records
     the recordings it was given."""
 
-    def __init__(self, verdicts, fit_over_floor=1.09, **kw):
+    def __init__(self, verdicts, fit_over_floor=1.09, estimated=True, **kw):
         kw.setdefault("second_look", 0)
         super().__init__(**kw)
-        self.verdicts = list(verdicts)
+        self.verdicts = list(verdicts)     # a verdict, or an exception the pass raises
+        self.estimated = estimated         # whether the passes estimated the wheel phases
         self.recs_seen = []
         self.fit_over_floor = fit_over_floor      # the named model's, in the look
 
     def _fit_pass(self, recs, weighted=False):
         verdict = self.verdicts.pop(0)
         self.recs_seen.append([r.name for r in recs])
+        if isinstance(verdict, Exception):
+            self.verdict_ = "half-way"     # state a failing pass leaves behind
+            raise verdict
         n = len(self.recs_seen)
         self.verdict_, self.selected_ = verdict, (["friction_drift"] if verdict == "selected" else [])
         self.floor_, self.floor_spread_, self.weighted_ = 0.005, 1.2, weighted
@@ -50,7 +54,7 @@ class Passes(Diagnosis):
         self.calibrated_ = SimpleNamespace(rmse_fit=0.005 * 6.7, x=np.zeros(1), hypothesis=h)
         self.final_ = SimpleNamespace(x=np.ones(1), rmse_fit=0.005 * self.fit_over_floor,
                                       hypothesis=SimpleNamespace(point=lambda x: ({"k_drift": -0.03}, {})))
-        self.phase_ = {"estimated": True}
+        self.phase_ = {"estimated": self.estimated}
         self.ablation_ = None
         self.heldout_beyond_floor_ = {}
         self.timings_ = {"refit": 100.0 * n}
@@ -62,8 +66,8 @@ def others(monkeypatch):
     """other_loads stubbed: records what it was asked and answers fixed numbers."""
     seen = []
 
-    def fake(recs, points, *, floor, cache, workers=None, progress=None, on_runs=None):
-        seen.append(([r.name for r in recs], dict(points), floor))
+    def fake(recs, points, *, floor, cache, workers=None, progress=None, on_runs=None, phases=True):
+        seen.append(([r.name for r in recs], dict(points), floor, phases))
         return ({r.name: {"role": r.role, "load_kg": r.load_kg, "calibrated": 0.05, "calibrated_over_floor": 10.0,
                           "updated": 0.03, "updated_over_floor": 6.0} for r in recs}, 40, 1)
 
@@ -89,8 +93,9 @@ def test_an_effect_named_on_the_heaviest_load_alone_is_the_answer(others):
     assert g["ran"] and g["adopted"] and g["load_kg"] == 1.0 and g["selected"] == ["friction_drift"]
     assert g["fit_over_floor"] == pytest.approx(1.09)
     # the other recordings reproduced with the calibrated and the updated model of the look
-    (names, points, floor), = others
+    (names, points, floor, phases), = others
     assert names == ["r0_0.5kg_fit.csv", "r1_0.5kg_heldout.csv", "r2_0.5kg_fit.csv"] and floor == 0.005
+    assert phases is True       # the look's pass estimated its wheel phases: the others get theirs too
     assert points == {"calibrated": ({"k_c": 2.0}, {}), "updated": ({"k_drift": -0.03}, {})}
     assert set(g["other_recordings"]) == set(names)
     # the pass on every recording is kept as a record and counted
@@ -115,6 +120,21 @@ def test_nothing_named_on_the_heaviest_load_leaves_the_answer_unexplained(others
     assert d.timings_ == {"heavy_look": 200.0, "refit": 100.0} and d.n_runs_ == 1500
     md = " ".join(_heavy_look_md(d))
     assert f"it said {said}, and the answer stays unexplained" in md
+
+
+def test_other_recordings_run_from_the_default_offset_when_the_look_estimated_no_phases(others):
+    Passes(["unexplained", "selected"], estimated=False).fit(SIX)
+    (names, _, _, phases), = others
+    assert phases is False
+
+
+def test_a_look_that_fails_leaves_the_answer_of_every_recording_and_says_why(others):
+    d = Passes(["unexplained", RuntimeError("worker pool broke")]).fit(SIX)
+    assert len(d.recs_seen) == 2 and others == []
+    assert d.verdict_ == "unexplained" and d.selected_ == [] and d.recordings_ == SIX
+    assert d.timings_ == {"refit": 100.0} and d.n_runs_ == 500
+    assert d.heavy_look_ == {"ran": False, "why": "RuntimeError: worker pool broke", "failed": True}
+    assert _heavy_look_md(d)[0].startswith("**Heaviest load alone: the look failed** (RuntimeError: worker pool broke)")
 
 
 @pytest.mark.parametrize("over, adopted", [(2.0, True), (2.0 * (1 + 1e-9), False), (2.94, False)])

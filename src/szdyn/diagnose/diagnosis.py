@@ -860,7 +860,14 @@ class Diagnosis:
                  "coefficients where lighter loads flip between tracking and slipping")
         state = dict(self.__dict__)
         self._base_start = None
-        self._pass(sub, weighted=self.weighting == "always")
+        try:
+            self._pass(sub, weighted=self.weighting == "always")
+        except Exception as exc:   # noqa: BLE001 -- a fallback must not lose the answer it falls back from
+            self.__dict__.update(state)
+            why = f"{type(exc).__name__}: {exc}"
+            self.log(f"the look at the {heavy:g} kg recordings alone failed ({why}): the answer stays unexplained")
+            self.heavy_look_ = {"ran": False, "why": why, "failed": True}
+            return
         # a fallback after the whole library failed: the effect must reproduce the heaviest load
         # within rival_floor noise floors, the standard under which nothing more is tried
         # (slider_viscous seed 20: its 1 kg recordings alone named encoder_scale at 2.94 floors,
@@ -886,7 +893,8 @@ class Diagnosis:
         look["other_recordings"], n_runs, n_failed = other_loads(
             rest, {"calibrated": cal.hypothesis.point(cal.x), "updated": fin.hypothesis.point(fin.x)},
             floor=self.floor_, cache=self._runs, workers=self.workers, progress=self.progress,
-            on_runs=None if self.checkpoint is None else self.checkpoint.save)
+            on_runs=None if self.checkpoint is None else self.checkpoint.save,
+            phases=bool(self.phase_.get("estimated")))
         self.timings_["heavy_look_other_loads"] = round(time.perf_counter() - t0, 2)
         self.n_runs_ += n_runs
         self.n_failed_ += n_failed
@@ -1092,6 +1100,7 @@ class Diagnosis:
             raise ValueError("no fit recordings")
         all_idx = fit_idx + held_idx
         self.timings_ = {}
+        self.unsettled_ = []
         self.base_torque_, self.final_torque_ = {}, {}
         clock = time.perf_counter()
 
@@ -1308,9 +1317,11 @@ class Diagnosis:
                 return settled(self.rule, {k: {"eligible": v["eligible"], "rmse_fit": v["result"].rmse_fit}
                                            for k, v in self.refits_.items()}, self.floor_, exclude=cid)
 
-            def refit(cid):
+            skipped = {}    # candidate -> the candidate that settled it (its further starts skipped)
+
+            def refit(cid, settle=True):
                 """Refit base + candidate ``cid`` from its best start, with the second, third and
-                fourth starts when it misses, unless another candidate already explains the
+                fourth starts when it misses, unless (``settle``) another candidate already explains the
                 mismatch within ``rule.rival_floor`` noise floors (:func:`~.selection.settled`; stores the
                 result in ``refits_``)."""
                 s, cand = screened[cid], library[cid]
@@ -1338,15 +1349,17 @@ class Diagnosis:
                 at_floor = res.rmse_fit <= self.rule.min_excess * self.floor_
                 # the further starts rescue a candidate that missed; once another candidate
                 # explains the mismatch within rival_floor noise floors (the criterion under which
-                # no rival is refitted at all) they would not change the answer, only its cost; the
-                # stall check and phase steps below are skipped too
-                # (load_lift seed 24: wheel_band_traction's second and fourth starts, at mu_t up
-                # to 2 where each run is stiff, took ~1650 s of 2624 after load_lift was at 1.8)
-                settler = settled_by(cand.id)
+                # no rival is refitted at all) they are skipped, with the stall check and phase
+                # steps below: they could only make this one a rival of a settled answer, at a
+                # cost (load_lift seed 24: wheel_band_traction's second and fourth starts, at mu_t
+                # up to 2 where each run is stiff, took ~1650 s of 2624 after load_lift was at
+                # 1.8). Should the settler lose its eligibility later, they are made (5f)
+                settler = settled_by(cand.id) if settle else None
                 if settler is not None and not (self.refits_[cand.id]["eligible"] and at_floor):
                     self.log(f"  no further starts for {cand.id}: {settler} already explains the mismatch "
                              f"within {self.rule.rival_floor:g} noise floors")
                     res.extra["settled_by"] = settler
+                    skipped[cand.id] = settler
                     return
                 if polish > 0 and not (self.refits_[cand.id]["eligible"] and at_floor):
                     # second start: the calibration may have moved the base coefficients to
@@ -1530,6 +1543,31 @@ class Diagnosis:
                 if self.ablation_ is None:
                     with_held(held_phases[None])
                     ablation(rebase)
+
+            # 5f. the further starts a settler skipped, where it settles nothing any more: the
+            # ablation (5d) and the held-out phases (5e) judged every candidate again, and a
+            # settler that was only a better valley of the base (what 5d is for) loses its
+            # eligibility there; the candidates it stopped get the starts they were denied
+            redo = [cid for cid in skipped if settled_by(cid) is None] if polish > 0 else []
+            self.unsettled_ = redo
+            if redo:
+                self.log(f"{', '.join(sorted({skipped[c] for c in redo}))} no longer settles the answer: "
+                         f"the further starts of {', '.join(redo)}")
+                with_held(held_phases.get(None, {}))      # the base's phases, as the refits had
+                for cid in redo:
+                    prev = self.refits_[cid]
+                    prev["result"].extra.pop("settled_by", None)
+                    del skipped[cid]
+                    refit(cid, settle=False)
+                    # (a first start that was continued (5b) can be better than all of them)
+                    if prev["result"].rss_fit < self.refits_[cid]["result"].rss_fit:
+                        self.refits_[cid] = prev
+                if held_phases:
+                    for cid in redo:
+                        r = self.refits_[cid]["result"]
+                        held_phases[cid] = rephase(r.hypothesis.point(r.x))
+                    judge_with_held_phases()
+                lap("refit_unsettled")
 
             # 6. decide
             dec = decision()

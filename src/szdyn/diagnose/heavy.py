@@ -56,11 +56,12 @@ def heaviest_load(recs):
 
 
 def other_loads(recs, points: dict, *, floor: float, cache: dict, workers=None, progress=None,
-                on_runs=None) -> tuple:
+                on_runs=None, phases: bool = True) -> tuple:
     """How models fitted on the heaviest load reproduce the other recordings.
 
     Each model runs every recording of ``recs`` from its best wheel phase (estimated at that
-    model, :func:`.phase.estimate_phases`; the default offset where not identified).
+    model, :func:`.phase.estimate_phases`; the default offset where not identified, or with
+    ``phases`` False).
 
     Parameters
     ----------
@@ -74,6 +75,10 @@ def other_loads(recs, points: dict, *, floor: float, cache: dict, workers=None, 
         The diagnosis's shared run cache (keys are recording names).
     workers, progress, on_runs :
         As for :class:`.engine.FeatureModel`.
+    phases : bool
+        Estimate each model's wheel phases (True) or run every recording from the default offset
+        (False: as the look's own pass did when it estimated none, with ``--no-phase`` or its
+        base beyond the phase gate).
 
     Returns
     -------
@@ -87,7 +92,7 @@ def other_loads(recs, points: dict, *, floor: float, cache: dict, workers=None, 
     with FeatureModel(recs, workers=workers, progress=progress, cache=cache, on_runs=on_runs) as model:
         for name, pt in points.items():
             # (the scan sets each run's q_w0 itself: the phases of the previous model do not enter)
-            model.phases = identified_phases(estimate_phases(model, pt, idx))
+            model.phases = identified_phases(estimate_phases(model, pt, idx)) if phases else {}
             for i in idx:
                 e = rms(model.residuals([pt], [i])[0])
                 out[recs[i].name][name] = e

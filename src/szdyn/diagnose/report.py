@@ -377,6 +377,9 @@ def _heavy_look_md(d) -> list:
     g = d.heavy_look_
     if not g:
         return []
+    if g.get("failed"):
+        return [f"**Heaviest load alone: the look failed** ({g['why']}); the answer is that of the "
+                "recordings together, unexplained.", ""]
     if not g["ran"]:
         return [f"**Heaviest load alone: not looked at** ({g['why']}).", ""]
     if not g["adopted"]:
