@@ -164,20 +164,33 @@ def test_an_interrupted_batch_keeps_every_run_that_finished(monkeypatch):
         r.t1 = d
     others_done = threading.Event()
     finished = []
+    lock = threading.Lock()
 
     def simulate(task):
         if task[3] == 0.5:                   # the run read first
             assert others_done.wait(10)
             raise KeyboardInterrupt
-        finished.append(task[3])
-        if len(finished) == 4:
-            others_done.set()
         return np.arange(3.0), np.zeros(3), None
+
+    def one_more_done(_fut):
+        # a done callback runs once its future is marked finished; setting the event inside
+        # simulate (before it returns) raced with the interrupt, and the last run was missed
+        with lock:
+            finished.append(_fut)
+            if len(finished) == 4:
+                others_done.set()
+
+    class Pool(ThreadPoolExecutor):
+        def submit(self, fn, *args, **kwargs):
+            fut = super().submit(fn, *args, **kwargs)
+            if args[0][3] != 0.5:
+                fut.add_done_callback(one_more_done)
+            return fut
     monkeypatch.setattr(engine, "_simulate", simulate)
     saved = []
     model = engine.FeatureModel(recs, workers=2, on_runs=saved.append)
     monkeypatch.setattr(model, "_executor", lambda: pool)
-    with ThreadPoolExecutor(2) as pool:
+    with Pool(2) as pool:
         with pytest.raises(KeyboardInterrupt):
             model._run_all([(r.name, ()) for r in recs])
     assert len(saved) == 1 and sorted(k[0] for k in saved[0]) == ["r1", "r2", "r3", "r4"]
