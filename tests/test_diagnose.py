@@ -20,8 +20,7 @@ from szdyn.diagnose.diagnosis import Diagnosis, probe_additions
 from szdyn.diagnose.engine import apply_sensor_transform, model_speed
 from szdyn.diagnose.fit import Hypothesis, fit_hypothesis, jacobian, linear_step
 from szdyn.diagnose.locate import FEATURES
-from szdyn.diagnose.selection import (Decision, SelectionRule, decide, nominate, rivals, screen, settled,
-                                      unfinished)
+from szdyn.diagnose.selection import Decision, SelectionRule, decide, nominate, rivals, screen, settled
 from szdyn.diagnose.split import choose_heldout, exchange_pairs, exchanged, with_heldout
 from szdyn.params import param_names
 from szdyn.errors import UserInputError
@@ -286,45 +285,6 @@ def test_a_candidate_within_the_rival_floor_settles_the_further_starts_of_the_ot
     wide = SelectionRule(rival_floor=6.0)
     assert settled(wide, {"load_lift": {**lead, "rmse_fit": 5.5 * floor}}, floor) is None
     assert settled(wide, {"load_lift": {**lead, "rmse_fit": 4.9 * floor}}, floor) == "load_lift"
-
-
-def test_an_unfinished_rival_holding_out_far_better_is_continued_before_the_decision():
-    rule, floor, h0 = SelectionRule(), 0.01508, 0.0505
-    # encoder_scale seed 27: the drag named at 69 % explained, the scale stopped by its budget
-    # at 57 % while it held out 3.1x better
-    lead = {"eligible": True, "budget_hit": False, "rmse_fit": 0.02265, "heldout_rmse": 0.02001}
-    scale = {"eligible": True, "budget_hit": True, "rmse_fit": 0.02490, "heldout_rmse": 0.00648}
-    refits = {"slider_viscous": lead, "encoder_scale": scale}
-    assert unfinished(rule, refits, ["slider_viscous"], floor, heldout_before=h0) == ["encoder_scale"]
-    # the boundary is rule.rival_heldout (2x)
-    at = {**scale, "heldout_rmse": lead["heldout_rmse"] / rule.rival_heldout}
-    assert unfinished(rule, {**refits, "encoder_scale": at}, ["slider_viscous"], floor, heldout_before=h0) \
-        == ["encoder_scale"]
-    past = {**scale, "heldout_rmse": lead["heldout_rmse"] / rule.rival_heldout * (1 + 1e-9)}
-    assert unfinished(rule, {**refits, "encoder_scale": past}, ["slider_viscous"], floor, heldout_before=h0) == []
-    # finished, not eligible, or leaving the fit beyond max_remaining floors (and the held-out
-    # recordings too): nothing to continue, however poorly the winner holds out
-    poor = {**lead, "heldout_rmse": 1.0}
-    assert unfinished(rule, {"slider_viscous": poor, "encoder_scale": scale}, ["slider_viscous"], floor,
-                      heldout_before=h0 * 10) == ["encoder_scale"]
-    for other in ({"budget_hit": False}, {"eligible": False},
-                  {"rmse_fit": 6 * floor, "heldout_rmse": 6.1 * floor}):
-        far = {**scale, **other}
-        assert unfinished(rule, {"slider_viscous": poor, "encoder_scale": far}, ["slider_viscous"], floor,
-                          heldout_before=h0 * 10) == [], other
-    # load_lift seed 27: friction_asymmetry unfinished at 99.8 % but holding out no better
-    ll = {"load_lift": {"eligible": True, "budget_hit": False, "rmse_fit": 0.01479, "heldout_rmse": 0.02347},
-          "friction_asymmetry": {"eligible": True, "budget_hit": True, "rmse_fit": 0.04983, "heldout_rmse": 0.02544}}
-    assert unfinished(rule, ll, ["load_lift"], 0.00909, heldout_before=0.6665) == []
-    # no winner, or no held-out recordings (NaN): nothing
-    assert unfinished(rule, refits, [], floor, heldout_before=h0) == []
-    nan = {k: {**v, "heldout_rmse": math.nan} for k, v in refits.items()}
-    assert unfinished(rule, nan, ["slider_viscous"], floor) == []
-    # several: best held-out first, the winner never
-    third = {**scale, "heldout_rmse": 0.005}
-    assert unfinished(rule, {**refits, "drive_compliance": third}, ["slider_viscous"], floor,
-                      heldout_before=h0) == ["drive_compliance", "encoder_scale"]
-    assert unfinished(rule, refits, ["encoder_scale"], floor, heldout_before=h0) == []
 
 
 def test_linear_screening_recovers_a_linear_effect():
@@ -1091,37 +1051,6 @@ def test_starts_skipped_for_a_settler_are_made_once_it_settles_nothing(viscous, 
     report = (tmp_path / "u" / "report.md").read_text()
     assert "no further starts" not in report and "phantom" not in report
     assert d["selected"] == d0["selected"] == ["slider_viscous"]
-
-
-def test_an_unfinished_rival_is_continued_judged_again_and_reported(viscous, tmp_path, monkeypatch):
-    """Step 7 of the rule made to fire (a stand-in that names every other refitted candidate):
-    each is continued once, judged again (with its held-out phases), the answer stands on truly
-    viscous recordings, and the report and diagnosis.json say which were continued."""
-    from szdyn.diagnose import diagnosis
-
-    _, d0, out = viscous
-    asked = []
-
-    def every_other(rule, refits, selected, floor, *, heldout_before=None):
-        asked.append(list(selected))
-        return [k for k in refits if selected and k != selected[0]]
-
-    monkeypatch.setattr(diagnosis, "unfinished", every_other)
-    man = out.parent / "data" / "manifest.toml"
-    # (two refitted, so that there is a rival)
-    assert run_main(["diagnose", str(man), "--out", str(tmp_path / "c"), *SMALL, "--shortlist", "2"]) == 0
-    d = json.loads((tmp_path / "c" / "diagnosis.json").read_text())
-    assert asked and asked[-1] == ["slider_viscous"]
-    others = [e["id"] for e in d["effects"] if e.get("refitted") and e["id"] != "slider_viscous"]
-    assert others, "only the drag was refitted: nothing to continue"
-    assert d["unfinished"] == others
-    assert "refit_unfinished" in d["cost"]["seconds"]
-    for e in d["effects"]:
-        if e["id"] in others:
-            assert "continued once" in e["fit_status"], e
-    assert d["selected"] == d0["selected"] == ["slider_viscous"]
-    assert "Continued before the decision" in (tmp_path / "c" / "report.md").read_text()
-    assert d0["unfinished"] == []
 
 
 def test_models_sharing_a_cache_run_each_point_once_whatever_the_roles(null):

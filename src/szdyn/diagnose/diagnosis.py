@@ -35,10 +35,9 @@ better the fit starts again from there (``unstall``).
 Budgets: every nonlinear fit is capped in Jacobians (``max_jac``; calibration ``2 max_jac``).
 A fit stopped by its cap is *continued* with ``polish_jac`` more where the answer depends on
 it: the calibration when it is still above the mismatch threshold (else a null case would be
-flagged only because the base fit was unfinished), the leading candidate (the eligible one,
-else the one explaining most), whose parameters are the reported result, and a rival that holds
-out far better than the provisional winner (:func:`~.selection.unfinished`, rule step 7). Each
-fit is continued once at most, so the cost stays bounded.
+flagged only because the base fit was unfinished), and the leading candidate (the eligible one,
+else the one explaining most), whose parameters are the reported result. Only one candidate is
+continued, so the cost stays bounded.
 """
 from __future__ import annotations
 
@@ -58,7 +57,7 @@ from .locate import follows, locate
 from .noise import bump_noise, sensor_noise, torque_bump_noise, torque_sensor_noise
 from .phase import PHASE_GATE, estimate_phases, identified_phases
 from .heavy import heaviest_load, other_loads
-from .selection import SelectionRule, decide, nominate, rivals, screen, settled, unfinished
+from .selection import SelectionRule, decide, nominate, rivals, screen, settled
 from .split import exchange_pairs, exchanged, hidden_conditions
 
 __all__ = ["FIT_TOL", "FLOOR_SPREAD", "RESTART_RATIO", "SECOND_LOOK_STEPS", "STAGED_RATIO", "WEIGHTINGS",
@@ -331,10 +330,6 @@ class Diagnosis:
     rivals_ : list of str
         Candidates refitted as rivals of a provisional winner that left the fit above
         ``rule.rival_floor`` noise floors (:func:`~.selection.rivals`; [] if none).
-    unfinished_ : list of str
-        Budget-stopped rivals continued before the decision because they held out
-        ``rule.rival_heldout`` times better than the provisional winner
-        (:func:`~.selection.unfinished`; [] if none).
     ablation_ : dict or None
         The base model refitted alone from the best eligible candidate's coefficients:
         ``candidate``, ``rmse_fit``, ``calibrated_rmse_fit`` (before) and ``adopted`` (it fitted
@@ -1106,7 +1101,6 @@ class Diagnosis:
         all_idx = fit_idx + held_idx
         self.timings_ = {}
         self.unsettled_ = []
-        self.unfinished_ = []
         self.base_torque_, self.final_torque_ = {}, {}
         clock = time.perf_counter()
 
@@ -1423,25 +1417,20 @@ class Diagnosis:
             # 5b. continue the leading candidate if its budget, not convergence, stopped it
             continued = set()
 
-            def continue_fit(cid, why):
-                """Continue ``cid``'s budget-stopped refit with ``polish`` more Jacobians."""
-                continued.add(cid)
-                prev = self.refits_[cid]["result"]
-                self.log(f"continuing {why} {cid} ({polish} Jacobians)")
-                with self._fit_phases(model, prev):
-                    nxt = fit_hypothesis(model, prev.hypothesis, fit_idx, max_jac=polish, previous=prev,
-                                         tol=FIT_TOL)
-                    if prev.extra.get("phase_steps"):   # (its phases and its record go on)
-                        nxt.extra["phase_steps"] = prev.extra["phase_steps"]
-                    assess(library[cid], prev.hypothesis, nxt)
-
             def continue_leader():
                 if not self.refits_ or polish <= 0:
                     return
                 lead = max(self.refits_, key=lambda k: (self.refits_[k]["eligible"], self.refits_[k]["explained"]))
                 prev = self.refits_[lead]["result"]
                 if prev.budget_hit and self.refits_[lead]["explained"] > 0 and lead not in continued:
-                    continue_fit(lead, "the leading candidate")
+                    continued.add(lead)
+                    self.log(f"continuing the leading candidate {lead} ({polish} Jacobians)")
+                    with self._fit_phases(model, prev):
+                        nxt = fit_hypothesis(model, prev.hypothesis, fit_idx, max_jac=polish, previous=prev,
+                                             tol=FIT_TOL)
+                        if prev.extra.get("phase_steps"):   # (its phases and its record go on)
+                            nxt.extra["phase_steps"] = prev.extra["phase_steps"]
+                        assess(library[lead], prev.hypothesis, nxt)
                     lap("refit_continued")
 
             continue_leader()
@@ -1579,39 +1568,6 @@ class Diagnosis:
                         held_phases[cid] = rephase(r.hypothesis.point(r.x))
                     judge_with_held_phases()
                 lap("refit_unsettled")
-
-            # 5g. an unfinished rival that holds out far better than the provisional winner is
-            # continued (rule step 7, :func:`~.selection.unfinished`): explained shares are compared,
-            # and a budget-stopped refit's share is short by however far it stopped (encoder_scale
-            # seed 27: 57 % against the drag's 69 %, held out 3x better)
-            if polish > 0:
-                dec = decision()
-                late = [cid for cid in unfinished(
-                    self.rule, {k: {"eligible": v["eligible"], "budget_hit": v["result"].budget_hit,
-                                    "rmse_fit": v["result"].rmse_fit, "heldout_rmse": v["heldout_rmse"]}
-                                for k, v in self.refits_.items()},
-                    dec.selected, self.floor_, heldout_before=h0 if held_idx else None) if cid not in continued]
-                self.unfinished_ = late
-                if late:
-                    self.log(f"{', '.join(late)} held out {self.rule.rival_heldout:g}x better than "
-                             f"{dec.selected[0]} or more, but stopped at its budget")
-                    with_held(held_phases.get(None, {}))      # the base's phases, as the refits had
-                    for cid in late:
-                        continue_fit(cid, "the unfinished rival")
-                    if held_phases:
-                        for cid in late:
-                            r = self.refits_[cid]["result"]
-                            held_phases[cid] = rephase(r.hypothesis.point(r.x))
-                        judge_with_held_phases()
-                    lap("refit_unfinished")
-                    # a continued rival that now leads meets the ablation too: a better valley of the
-                    # base model must not be named (the ablation so far started from the old winner)
-                    now = decision().selected
-                    if now and now[0] in late and polish > 0:
-                        ab0 = self.ablation_
-                        ablation(rebase if held_phases else rejudge_at_base_phases)
-                        if ab0 is not None and not self.ablation_["adopted"] and ab0["adopted"]:
-                            self.ablation_ = ab0      # (the report keeps the adoption that happened)
 
             # 6. decide
             dec = decision()

@@ -254,7 +254,6 @@ def _to_json(d) -> dict:
         "location": {"recordings": d.location_["recordings"], "follows": d.location_["follows"]},
         "nominated": d.nominated_,
         "rivals": list(d.rivals_),
-        "unfinished": list(d.unfinished_),
         "probing": d.probing_,
         "recordings": [{"name": r.name, "role": r.role, "load_kg": r.load_kg,
                         "t0": r.t0, "t1": r.t1, "samples": len(r.rec)} for r in d.recordings_],
@@ -624,9 +623,6 @@ def _report_md(d, js) -> str:
           _nominated_md(d), "", _probing_md(d), "",
           *([f"Rivals refitted because the provisional winner left the fit above {d.rule.rival_floor:g}x "
              "the floor: " + ", ".join(f"`{k}`" for k in d.rivals_) + ".", ""] if d.rivals_ else []),
-          *([f"Continued before the decision, because its refit had stopped at its budget while it held out "
-             f"{d.rule.rival_heldout:g}x better than the provisional winner or more: "
-             + ", ".join(f"`{k}`" for k in d.unfinished_) + ".", ""] if d.unfinished_ else []),
           "| effect | score | screen RMSE | refit RMSE | held-out RMSE | dBIC | eligible | selected | refit |",
           "|---|---|---|---|---|---|---|---|---|"]
     for e in js["effects"]:

@@ -68,17 +68,6 @@ held-out RMSEs:
    their first start only, not the further starts that rescue a miss (:func:`settled`).
 6. Other such candidates whose fit is within ``min_dbic`` of the selected one
    (``n_eff ln(rss_other / rss_selected) < min_dbic``) are reported as **indistinguishable**.
-7. Before the decision is final, an eligible candidate that explains the mismatch but whose
-   refit was stopped by its Jacobian budget, and that holds out at least ``rival_heldout`` (2)
-   times better than the provisional winner, is continued (:func:`unfinished`): the rule compares
-   explained shares, and an unfinished refit's share is too low by however far it stopped short.
-   Out-of-sample encoder_scale seed 27: the scale's refit stopped at its budget at 0.0249 rad/s,
-   above its own linear screening's 0.0215, explaining 57 % of the excess against the drag's 69 %,
-   and the drag was named while the scale held out at 0.0065 rad/s against the drag's 0.0200 (its
-   gain exact). The held-out recordings only decide which fit is finished, not which is chosen:
-   the finished refit is judged by steps 2-6 like any other. The same grid's load_lift and
-   friction_asymmetry cases each had an unfinished eligible rival that held out no better
-   (0.2630 and 0.0254 against 0.0270 and 0.0235 rad/s): not continued.
 """
 from __future__ import annotations
 
@@ -88,7 +77,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.optimize import lsq_linear
 
-__all__ = ["SelectionRule", "Decision", "decide", "nominate", "rivals", "screen", "settled", "unfinished"]
+__all__ = ["SelectionRule", "Decision", "decide", "nominate", "rivals", "screen", "settled"]
 
 
 @dataclass(frozen=True)
@@ -103,9 +92,6 @@ class SelectionRule:
     #: a selected candidate leaving the fit above this many noise floors makes the diagnosis
     #: refit the next screened candidates too (``Diagnosis(rivals=...)``)
     rival_floor: float = 2.0
-    #: an unfinished (budget-stopped) rival holding out this many times better than the
-    #: provisional winner is continued before the decision (:func:`unfinished`)
-    rival_heldout: float = 2.0
 
     def mismatch(self, b: float, floor: float) -> bool:
         return b > self.min_excess * floor
@@ -287,38 +273,3 @@ def settled(rule: SelectionRule, refits: dict, floor: float, *, exclude: str | N
     """
     lim = min(rule.rival_floor, rule.max_remaining) * floor
     return next((k for k, v in refits.items() if k != exclude and v["eligible"] and v["rmse_fit"] <= lim), None)
-
-
-def unfinished(rule: SelectionRule, refits: dict, selected, floor: float, *,
-               heldout_before: float | None = None) -> list:
-    """Rivals of the provisional winner to continue before deciding (step 7 of the rule).
-
-    Parameters
-    ----------
-    rule : SelectionRule
-    refits : dict of str -> dict
-        Per candidate: ``eligible``, ``budget_hit`` (its refit was stopped by its Jacobian budget),
-        ``rmse_fit`` and ``heldout_rmse`` (rad/s; NaN without held-out recordings).
-    selected : list of str
-        The provisional winner's id, or [].
-    floor : float
-        Noise floor (rad/s).
-    heldout_before : float or None
-        Held-out RMSE of the calibrated base model (rad/s), for
-        :meth:`SelectionRule.explains_mismatch`.
-
-    Returns
-    -------
-    list of str
-        Eligible, budget-stopped candidates other than the winner that explain the mismatch and
-        whose held-out RMSE is at most the winner's over ``rule.rival_heldout``, best held-out
-        first ([] without a winner or without held-out recordings: NaN compares false).
-    """
-    if not selected:
-        return []
-    h_lead = refits[selected[0]]["heldout_rmse"]
-    out = [k for k, v in refits.items()
-           if k != selected[0] and v["eligible"] and v["budget_hit"]
-           and rule.explains_mismatch(v["rmse_fit"], floor, h0=heldout_before, hc=v["heldout_rmse"])
-           and v["heldout_rmse"] * rule.rival_heldout <= h_lead]
-    return sorted(out, key=lambda k: refits[k]["heldout_rmse"])
