@@ -255,6 +255,50 @@ def test_decide_names_only_an_effect_that_reaches_the_floor():
     assert decide(rule, {}, mismatch=True, floor=floor) == Decision("unexplained")
 
 
+def test_close_rivals_are_parted_by_the_heldout_recordings():
+    rule = SelectionRule()
+    f, b, h0 = 0.01508, 0.03376, 0.0505
+
+    def r(c, held, eligible=True):
+        return _refit(c, b=b, floor=f, held=held, eligible=eligible)
+
+    # encoder_scale seed 27: the drag explains more (1.50 against 1.65 floors), the scale holds
+    # out 3.1x better: both within rival_floor (2) floors, so the held-out recordings decide
+    sv, es = r(0.02265, 0.02001), r(0.02490, 0.00648)
+    assert sv["explained"] > es["explained"]
+    dec = decide(rule, {"slider_viscous": sv, "encoder_scale": es}, mismatch=True, floor=f, heldout_before=h0)
+    assert (dec.verdict, dec.selected, dec.by_heldout) == ("selected", ["encoder_scale"], "slider_viscous")
+    assert dec.indistinguishable == ["slider_viscous"]
+    # the margin is rule.rival_heldout (2x), inclusive
+    at = r(0.02490, 0.02001 / rule.rival_heldout)
+    assert decide(rule, {"sv": sv, "es": at}, mismatch=True, floor=f, heldout_before=h0).selected == ["es"]
+    short = r(0.02490, 0.02001 / rule.rival_heldout * (1 + 1e-9))
+    dec = decide(rule, {"sv": sv, "es": short}, mismatch=True, floor=f, heldout_before=h0)
+    assert (dec.selected, dec.by_heldout) == (["sv"], None)
+    # the rival beyond rival_floor floors (the fit parts them), or the one explaining most beyond it
+    # (then every rival is): the explained share decides, however the held-out recordings look
+    far = r(rule.rival_floor * f * (1 + 1e-9), 0.001)
+    assert decide(rule, {"sv": sv, "es": far}, mismatch=True, floor=f, heldout_before=h0).selected == ["sv"]
+    lead_far, rival_far = r(2.5 * f, 0.02), r(2.6 * f, 0.001)
+    assert decide(rule, {"a": lead_far, "b": rival_far}, mismatch=True, floor=f, heldout_before=h0).selected == ["a"]
+    # an ineligible rival, or no held-out recordings (NaN): no say
+    dec = decide(rule, {"sv": sv, "es": r(0.02490, 0.00648, eligible=False)}, mismatch=True, floor=f,
+                 heldout_before=h0)
+    assert dec.selected == ["sv"]
+    nan = {"sv": {**sv, "heldout_rmse": math.nan}, "es": {**es, "heldout_rmse": math.nan}}
+    assert decide(rule, nan, mismatch=True, floor=f).selected == ["sv"]
+    # of several close rivals, the best held-out; the verdict never changes (no new discovery)
+    third = r(0.0290, 0.005)
+    dec = decide(rule, {"sv": sv, "es": es, "x": third}, mismatch=True, floor=f, heldout_before=h0)
+    assert (dec.selected, dec.by_heldout) == (["x"], "sv")
+    assert decide(rule, {"sv": sv, "es": es}, mismatch=False, floor=f).verdict == "none"
+    # friction_asymmetry seed 27: load_lift close too (1.80 floors), but friction_asymmetry both
+    # explains most and holds out best: unchanged
+    fa, ll = _refit(0.01039, b=0.2047, floor=0.0101, held=0.02704), _refit(0.01821, b=0.2047, floor=0.0101, held=0.26302)
+    dec = decide(rule, {"friction_asymmetry": fa, "load_lift": ll}, mismatch=True, floor=0.0101, heldout_before=0.3959)
+    assert (dec.selected, dec.by_heldout) == (["friction_asymmetry"], None)
+
+
 def test_rivals_are_the_next_screened_candidates_when_the_winner_leaves_the_fit_off():
     rule, ranking = SelectionRule(), ["encoder_scale", "wheel_band_traction", "slider_viscous", "load_lift", "x"]
     refitted = {"encoder_scale": {}, "wheel_band_traction": {}}

@@ -340,6 +340,9 @@ class Diagnosis:
     indistinguishable_ : list of str
         Other eligible candidates whose fit is within ``rule.min_dbic`` (in BIC) of the
         selected one: the recordings cannot tell them apart.
+    passed_over_ : str or None
+        When the held-out recordings chose among close rivals (rule step 4): the candidate that
+        explained most of the fit excess and was not selected; else None.
     partial_ : list of str
         Eligible candidates whose refit leaves the fit more than ``rule.max_remaining`` noise
         floors (and the held-out recordings too, :meth:`~.selection.SelectionRule.explains_mismatch`):
@@ -1101,6 +1104,7 @@ class Diagnosis:
         all_idx = fit_idx + held_idx
         self.timings_ = {}
         self.unsettled_ = []
+        self.passed_over_ = None
         self.base_torque_, self.final_torque_ = {}, {}
         clock = time.perf_counter()
 
@@ -1466,7 +1470,10 @@ class Diagnosis:
                 eligible = [k for k, v in self.refits_.items() if v["eligible"]]
                 if not eligible or polish <= 0:
                     return
-                lead = max(eligible, key=lambda k: self.refits_[k]["explained"])
+                # (the one the rule would select, where the held-out recordings chose it among
+                # close rivals; else the one explaining most)
+                now = decision()
+                lead = now.selected[0] if now.by_heldout else max(eligible, key=lambda k: self.refits_[k]["explained"])
                 lead_res = self.refits_[lead]["result"]
                 x_lead = lead_res.x[:base_h.n_base]
                 self.log(f"ablation: refitting the base model alone from {lead}'s coefficients")
@@ -1573,6 +1580,11 @@ class Diagnosis:
             dec = decision()
             self.verdict_, self.selected_ = dec.verdict, dec.selected
             self.indistinguishable_, self.partial_ = dec.indistinguishable, dec.partial
+            self.passed_over_ = dec.by_heldout
+            if dec.by_heldout:
+                self.log(f"{dec.selected[0]} and {dec.by_heldout} both leave the fit within "
+                         f"{self.rule.rival_floor:g}x the floor: {dec.selected[0]} holds out "
+                         f"{self.rule.rival_heldout:g}x better or more and is selected")
             for k in dec.partial:
                 self.log(f"  {k} explains {self.refits_[k]['explained']:.0%} of the excess but leaves the fit "
                          f"{self.refits_[k]['result'].rmse_fit / self.floor_:.1f}x the floor (and the held-out "

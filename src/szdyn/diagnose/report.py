@@ -220,6 +220,7 @@ def _to_json(d) -> dict:
         "selected": list(d.selected_),
         "verdict": d.verdict_,
         "indistinguishable": list(d.indistinguishable_),
+        "passed_over": d.passed_over_,
         "partial": [{"id": k, "explained": d.refits_[k]["explained"],
                      "fit_rmse_over_floor": d.refits_[k]["result"].rmse_fit / d.floor_} for k in d.partial_],
         "effects": effects,
@@ -508,12 +509,18 @@ def _report_md(d, js) -> str:
     elif v == "selected":
         e = CANDIDATES[d.selected_[0]]
         L += [f"**Verdict: `{e.id}`.** {e.explains}.", "", f"Term: `{e.expression}`", ""]
+        if d.passed_over_:
+            L += [f"**Chosen by the held-out recordings.** `{d.passed_over_}` explained more of the fit "
+                  f"recordings' excess, but both left them within {d.rule.rival_floor:g}x the noise floor, "
+                  f"and `{e.id}` held out {d.rule.rival_heldout:g}x better or more (see the candidates "
+                  "table). The held-out improvement below is then not an independent check.", ""]
         if d.indistinguishable_:
             L += ["**Not distinguishable from these recordings:** "
                   + ", ".join(f"`{k}`" for k in d.indistinguishable_)
                   + f" fit(s) within {d.rule.min_dbic:g} of the selected effect in the information "
                   "criterion. Recordings that separate them (other loads, both directions, slow "
-                  "ramps) would decide; the selected one explains the most.", ""]
+                  "ramps) would decide; " + ("the held-out recordings chose." if d.passed_over_ else
+                                             "the selected one explains the most."), ""]
     else:
         L += ["**Verdict: unexplained.** The calibrated model misses something significant "
               f"({d.calibrated_.rmse_fit / d.floor_:.1f}x the noise floor) but no candidate of the "
