@@ -267,14 +267,14 @@ def test_close_rivals_are_parted_by_the_heldout_recordings():
     sv, es = r(0.02265, 0.02001), r(0.02490, 0.00648)
     assert sv["explained"] > es["explained"]
     dec = decide(rule, {"slider_viscous": sv, "encoder_scale": es}, mismatch=True, floor=f, heldout_before=h0)
-    assert (dec.verdict, dec.selected, dec.by_heldout) == ("selected", ["encoder_scale"], "slider_viscous")
+    assert (dec.verdict, dec.selected, dec.passed_over) == ("selected", ["encoder_scale"], "slider_viscous")
     assert dec.indistinguishable == ["slider_viscous"]
     # the margin is rule.rival_heldout (2x), inclusive
     at = r(0.02490, 0.02001 / rule.rival_heldout)
     assert decide(rule, {"sv": sv, "es": at}, mismatch=True, floor=f, heldout_before=h0).selected == ["es"]
     short = r(0.02490, 0.02001 / rule.rival_heldout * (1 + 1e-9))
     dec = decide(rule, {"sv": sv, "es": short}, mismatch=True, floor=f, heldout_before=h0)
-    assert (dec.selected, dec.by_heldout) == (["sv"], None)
+    assert (dec.selected, dec.passed_over) == (["sv"], None)
     # the rival beyond rival_floor floors (the fit parts them), or the one explaining most beyond it
     # (then every rival is): the explained share decides, however the held-out recordings look
     far = r(rule.rival_floor * f * (1 + 1e-9), 0.001)
@@ -287,16 +287,20 @@ def test_close_rivals_are_parted_by_the_heldout_recordings():
     assert dec.selected == ["sv"]
     nan = {"sv": {**sv, "heldout_rmse": math.nan}, "es": {**es, "heldout_rmse": math.nan}}
     assert decide(rule, nan, mismatch=True, floor=f).selected == ["sv"]
+    # a close rival without a held-out score does not hide one with it
+    dec = decide(rule, {"sv": sv, "n": {**es, "heldout_rmse": math.nan}, "es": es}, mismatch=True, floor=f,
+                 heldout_before=h0)
+    assert (dec.selected, dec.passed_over) == (["es"], "sv")
     # of several close rivals, the best held-out; the verdict never changes (no new discovery)
     third = r(0.0290, 0.005)
     dec = decide(rule, {"sv": sv, "es": es, "x": third}, mismatch=True, floor=f, heldout_before=h0)
-    assert (dec.selected, dec.by_heldout) == (["x"], "sv")
+    assert (dec.selected, dec.passed_over) == (["x"], "sv")
     assert decide(rule, {"sv": sv, "es": es}, mismatch=False, floor=f).verdict == "none"
     # friction_asymmetry seed 27: load_lift close too (1.80 floors), but friction_asymmetry both
     # explains most and holds out best: unchanged
     fa, ll = _refit(0.01039, b=0.2047, floor=0.0101, held=0.02704), _refit(0.01821, b=0.2047, floor=0.0101, held=0.26302)
     dec = decide(rule, {"friction_asymmetry": fa, "load_lift": ll}, mismatch=True, floor=0.0101, heldout_before=0.3959)
-    assert (dec.selected, dec.by_heldout) == (["friction_asymmetry"], None)
+    assert (dec.selected, dec.passed_over) == (["friction_asymmetry"], None)
 
 
 def test_rivals_are_the_next_screened_candidates_when_the_winner_leaves_the_fit_off():

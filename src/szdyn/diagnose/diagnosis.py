@@ -1473,7 +1473,7 @@ class Diagnosis:
                 # (the one the rule would select, where the held-out recordings chose it among
                 # close rivals; else the one explaining most)
                 now = decision()
-                lead = now.selected[0] if now.by_heldout else max(eligible, key=lambda k: self.refits_[k]["explained"])
+                lead = now.selected[0] if now.passed_over else max(eligible, key=lambda k: self.refits_[k]["explained"])
                 lead_res = self.refits_[lead]["result"]
                 x_lead = lead_res.x[:base_h.n_base]
                 self.log(f"ablation: refitting the base model alone from {lead}'s coefficients")
@@ -1580,9 +1580,9 @@ class Diagnosis:
             dec = decision()
             self.verdict_, self.selected_ = dec.verdict, dec.selected
             self.indistinguishable_, self.partial_ = dec.indistinguishable, dec.partial
-            self.passed_over_ = dec.by_heldout
-            if dec.by_heldout:
-                self.log(f"{dec.selected[0]} and {dec.by_heldout} both leave the fit within "
+            self.passed_over_ = dec.passed_over
+            if dec.passed_over:
+                self.log(f"{dec.selected[0]} and {dec.passed_over} both leave the fit within "
                          f"{self.rule.rival_floor:g}x the floor: {dec.selected[0]} holds out "
                          f"{self.rule.rival_heldout:g}x better or more and is selected")
             for k in dec.partial:

@@ -61,7 +61,7 @@ held-out RMSEs:
    recordings no longer tell them apart by more than the floor's own uncertainty, and the
    held-out recordings decide: the close rival with the lowest held-out RMSE (over all held-out
    recordings together) is selected if it holds out at least ``rival_heldout`` (2) times better
-   than the one explaining most (``Decision.by_heldout``). Out-of-sample encoder_scale seed 27:
+   than the one explaining most (``Decision.passed_over``). Out-of-sample encoder_scale seed 27:
    the drag explained 69 % of the excess (1.50 floors), the scale 57 % (1.65 floors), and the
    scale held out at 0.0065 rad/s against 0.0200 with its gain exact to five digits. The held-out
    gain reported for such a choice is then not an independent check (the report says so).
@@ -161,7 +161,7 @@ class Decision:
     partial : list of str
         Eligible candidates that leave the fit more than ``max_remaining`` floors, and the
         held-out recordings too (largest explained share first).
-    by_heldout : str or None
+    passed_over : str or None
         When the held-out recordings chose among close rivals (step 4): the candidate that
         explained most of the fit excess and was passed over; else None.
     """
@@ -170,7 +170,7 @@ class Decision:
     selected: list = field(default_factory=list)
     indistinguishable: list = field(default_factory=list)
     partial: list = field(default_factory=list)
-    by_heldout: str | None = None
+    passed_over: str | None = None
 
 
 def decide(rule: SelectionRule, refits: dict, *, mismatch: bool, floor: float,
@@ -203,7 +203,8 @@ def decide(rule: SelectionRule, refits: dict, *, mismatch: bool, floor: float,
     # when one holds out clearly better (NaN held-out, no held-out recordings: compares false)
     passed_over = None
     lim = rule.rival_floor * floor
-    close = [k for k in complete if k != best and refits[k]["rmse_fit"] <= lim]
+    close = [k for k in complete if k != best and refits[k]["rmse_fit"] <= lim
+             and math.isfinite(refits[k]["heldout_rmse"])]
     if refits[best]["rmse_fit"] <= lim and close:
         alt = min(close, key=lambda k: refits[k]["heldout_rmse"])
         if refits[alt]["heldout_rmse"] * rule.rival_heldout <= refits[best]["heldout_rmse"]:
