@@ -172,11 +172,11 @@ def test_an_interrupted_batch_keeps_every_run_that_finished(monkeypatch):
             raise KeyboardInterrupt
         return np.arange(3.0), np.zeros(3), None
 
-    def one_more_done(_fut):
+    def one_more_done(fut):
         # a done callback runs once its future is marked finished; setting the event inside
         # simulate (before it returns) raced with the interrupt, and the last run was missed
         with lock:
-            finished.append(_fut)
+            finished.append(fut)
             if len(finished) == 4:
                 others_done.set()
 
