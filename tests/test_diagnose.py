@@ -1101,6 +1101,37 @@ def test_starts_skipped_for_a_settler_are_made_once_it_settles_nothing(viscous, 
     assert d["selected"] == d0["selected"] == ["slider_viscous"]
 
 
+def test_a_choice_by_the_heldout_recordings_reaches_the_report_and_the_json(viscous, tmp_path, monkeypatch):
+    """The close-rival branch end to end: when the rule passes over the candidate explaining most
+    (``Decision.passed_over``), the diagnosis keeps the choice, the report says why and that its
+    held-out gain is no independent check, and diagnosis.json names the one passed over. The
+    small case has no close rivals, so the decision is scripted to have one; the rule itself is
+    tested in ``test_close_rivals_are_parted_by_the_heldout_recordings``."""
+    import dataclasses
+
+    from szdyn.diagnose import diagnosis
+
+    _, d0, out = viscous
+    real, calls = diagnosis.decide, []
+
+    def with_a_close_rival(*args, **kw):
+        dec = real(*args, **kw)
+        calls.append(dec.verdict)
+        return dataclasses.replace(dec, passed_over="load_lift") if dec.verdict == "selected" else dec
+
+    monkeypatch.setattr(diagnosis, "decide", with_a_close_rival)
+    man = out.parent / "data" / "manifest.toml"
+    assert run_main(["diagnose", str(man), "--out", str(tmp_path / "r"), *SMALL]) == 0
+    assert "selected" in calls
+    d = json.loads((tmp_path / "r" / "diagnosis.json").read_text())
+    assert d["selected"] == d0["selected"] == ["slider_viscous"]
+    assert d["passed_over"] == "load_lift" and d0["passed_over"] is None
+    report = (tmp_path / "r" / "report.md").read_text()
+    assert "**Chosen by the held-out recordings.** `load_lift` explained more" in report
+    assert "not an independent check" in report
+    assert "Chosen by the held-out recordings" not in (out / "report.md").read_text()
+
+
 def test_models_sharing_a_cache_run_each_point_once_whatever_the_roles(null):
     """A second pass (weighted, or with the split exchanged) repeats runs of the first: with a
     shared cache they are not run again, and give the same speeds with the roles reordered."""
