@@ -622,12 +622,16 @@ def test_probe_screening_gives_own_probes_a_slot_apart_from_the_best_generic_pro
         return [{"id": i, "rmse_probe": r, "own_probes": own} for i, r, own in rows]
 
     # one slot for the best generic probe (B, though it also beats the base, stays out); the
-    # own-probe candidate is judged apart, even when it ranks below both; one that does not
-    # beat the base by the criterion's margin (T, 0.9995 rad/s: n_eff ln ratio = 1 < 10) is not added
-    probing = entries(("A", 0.5, False), ("B", 0.6, False), ("S", 0.7, True), ("T", 0.9995, True))
+    # own-probe candidates are judged apart, even when they rank below both, and need only fit
+    # better than the base (T, 0.9995 rad/s: n_eff ln ratio = 1 < 10, within the criterion's
+    # margin, is added); a generic probe within the margin (G) is not, nor an own one that ties (U)
+    probing = entries(("A", 0.5, False), ("B", 0.6, False), ("S", 0.7, True), ("T", 0.9995, True),
+                      ("U", 1.0, True))
     added = probe_additions(probing, ["C"], rule, rss_base=rss_base, n_fit=n_fit)
-    assert [q["id"] for q in added] == ["A", "S"]
-    assert [q.get("added", False) for q in probing] == [True, False, True, False]
+    assert [q["id"] for q in added] == ["A", "S", "T"]
+    assert [q.get("added", False) for q in probing] == [True, False, True, True, False]
+    probing = entries(("G", 0.9995, False), ("S", 0.9995, True))
+    assert [q["id"] for q in probe_additions(probing, [], rule, rss_base=rss_base, n_fit=n_fit)] == ["S"]
     # the own-probe candidate leading the ranking does not take the generic slot either
     probing = entries(("S", 0.3, True), ("A", 0.5, False))
     assert {q["id"] for q in probe_additions(probing, [], rule, rss_base=rss_base, n_fit=n_fit)} == {"S", "A"}
