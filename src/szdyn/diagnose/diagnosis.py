@@ -1270,7 +1270,8 @@ class Diagnosis:
             # the linear base correction), actual model runs; the best, if it beats the calibrated
             # base by more than the information criterion's margin, is refitted too. A candidate
             # with its own probes (moved out of the calibrated base) is judged on its own: it
-            # does not take the slot of the others' best
+            # does not take the slot of the others' best, and it is refitted when it fits better
+            # than the base at all (probe_additions says why)
             self.probing_ = []
             if self.mismatch_ and self.probe_screen:
                 for c in self._library():
