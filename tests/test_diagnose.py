@@ -20,7 +20,8 @@ from szdyn.diagnose.diagnosis import Diagnosis, probe_additions
 from szdyn.diagnose.engine import apply_sensor_transform, model_speed
 from szdyn.diagnose.fit import Hypothesis, fit_hypothesis, jacobian, linear_step
 from szdyn.diagnose.locate import FEATURES
-from szdyn.diagnose.selection import Decision, SelectionRule, decide, nominate, rivals, screen, settled
+from szdyn.diagnose.selection import (Decision, SelectionRule, close_rivals, decide, nominate, rivals, screen,
+                                     settled)
 from szdyn.diagnose.split import choose_heldout, exchange_pairs, exchanged, with_heldout
 from szdyn.params import param_names
 from szdyn.errors import UserInputError
@@ -333,6 +334,26 @@ def test_a_candidate_within_the_rival_floor_settles_the_further_starts_of_the_ot
     wide = SelectionRule(rival_floor=6.0)
     assert settled(wide, {"load_lift": {**lead, "rmse_fit": 5.5 * floor}}, floor) is None
     assert settled(wide, {"load_lift": {**lead, "rmse_fit": 4.9 * floor}}, floor) == "load_lift"
+
+
+def test_close_rivals_are_the_eligible_candidates_within_the_rival_floor_when_two_or_more():
+    rule, floor = SelectionRule(), 0.02309
+    # encoder_scale seed 30 (out of sample): the drag continued to 1.20 floors, the scale stopped
+    # by its budget at 1.28; both are to be finished before the rule compares them
+    refits = {"slider_viscous": {"eligible": True, "rmse_fit": 0.02771},
+              "encoder_scale": {"eligible": True, "rmse_fit": 0.0296},
+              "friction_drift": {"eligible": True, "rmse_fit": 0.0700},     # beyond 2 floors
+              "load_lift": {"eligible": False, "rmse_fit": 0.0250}}         # not eligible
+    assert close_rivals(rule, refits, floor) == ["slider_viscous", "encoder_scale"]
+    # one alone within the floor has no rival
+    assert close_rivals(rule, {k: refits[k] for k in ("slider_viscous", "friction_drift")}, floor) == []
+    assert close_rivals(rule, {}, floor) == []
+    # the boundary is rule.rival_floor, as for settled()
+    edge = {"a": {"eligible": True, "rmse_fit": rule.rival_floor * floor},
+            "b": {"eligible": True, "rmse_fit": floor}}
+    assert close_rivals(rule, edge, floor) == ["a", "b"]
+    edge["a"]["rmse_fit"] *= 1 + 1e-9
+    assert close_rivals(rule, edge, floor) == []
 
 
 def test_linear_screening_recovers_a_linear_effect():

@@ -65,6 +65,8 @@ held-out RMSEs:
    the drag explained 69 % of the excess (1.50 floors), the scale 57 % (1.65 floors), and the
    scale held out at 0.0065 rad/s against 0.0200 with its gain exact to five digits. The held-out
    gain reported for such a choice is then not an independent check (the report says so).
+   Close rivals whose fit stopped by its budget are continued before they are compared
+   (:func:`close_rivals`).
    Which effect is named changes; whether one is, does not: no new false discovery.
 5. Before the decision is final, a selected candidate that leaves the fit above
    ``rival_floor`` (2) noise floors makes the diagnosis refit the next candidates of the linear
@@ -86,7 +88,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.optimize import lsq_linear
 
-__all__ = ["SelectionRule", "Decision", "decide", "nominate", "rivals", "screen", "settled"]
+__all__ = ["SelectionRule", "Decision", "close_rivals", "decide", "nominate", "rivals", "screen", "settled"]
 
 
 @dataclass(frozen=True)
@@ -276,6 +278,29 @@ def rivals(rule: SelectionRule, selected, rmse_selected: float, floor: float, ra
     if n <= 0 or not selected or rmse_selected <= rule.rival_floor * floor:
         return []
     return [c for c in ranking if c not in refitted][:n]
+
+
+def close_rivals(rule: SelectionRule, refits: dict, floor: float) -> list:
+    """Eligible candidates that all leave the fit within ``rule.rival_floor`` noise floors, when
+    there are at least two of them: the fit no longer parts them by more than the floor, so each
+    one's fit must be finished before they are compared (a fit stopped by its budget is
+    continued: :class:`~.diagnosis.Diagnosis`, step 5b).
+
+    Parameters
+    ----------
+    refits : dict of str -> dict
+        Per candidate: ``eligible`` and ``rmse_fit`` (rad/s).
+    floor : float
+        Noise floor (rad/s).
+
+    Returns
+    -------
+    list of str
+        Their ids in ``refits`` order; [] when fewer than two.
+    """
+    lim = min(rule.rival_floor, rule.max_remaining) * floor
+    close = [k for k, v in refits.items() if v["eligible"] and v["rmse_fit"] <= lim]
+    return close if len(close) >= 2 else []
 
 
 def settled(rule: SelectionRule, refits: dict, floor: float, *, exclude: str | None = None) -> str | None:
