@@ -80,8 +80,8 @@ def _build_parser():
                     "a second pass when the first names no effect and the recordings' own floors differ "
                     f"by more than {FLOOR_SPREAD:g}x, 'always', or 'off'")
     ap.add_argument("--max-jac", type=int, default=4, help="Jacobians per nonlinear fit (default 4; calibration twice)")
-    ap.add_argument("--polish-jac", type=int, help="Jacobians to continue a budget-stopped calibration or "
-                    "leading candidate with (default twice --max-jac; 0: never)")
+    ap.add_argument("--polish-jac", type=int, help="Jacobians to continue a budget-stopped calibration, "
+                    "leading candidate or close rival with (default twice --max-jac; 0: never)")
     ap.add_argument("--unstall", type=int, default=2,
                     help="when the calibration or a candidate's refit ends above the mismatch threshold, at "
                     "most this many times try its full linear step and, when that fits clearly better (a "

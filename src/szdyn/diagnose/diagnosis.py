@@ -207,8 +207,8 @@ class Diagnosis:
     max_jac : int
         Jacobians per nonlinear fit (calibration: twice this).
     polish_jac : int, optional
-        Jacobians with which a budget-stopped calibration or leading candidate is continued
-        (default ``2 max_jac``; 0: never).
+        Jacobians with which a budget-stopped calibration, leading candidate or close rival
+        is continued (default ``2 max_jac``; 0: never).
     unstall : int
         When the calibration, or a candidate's refit (the best of its starts), ends above the
         mismatch threshold, at most this many times try its full linearised (Gauss-Newton) step
