@@ -1333,9 +1333,15 @@ class Diagnosis:
                                           for k, v in self.refits_.items()},
                               mismatch=self.mismatch_, floor=self.floor_,
                               heldout_before=h0 if held_idx else None)
+
+            def fit_summary():
+                """Per refitted candidate: its eligibility and fit RMSE (rad/s), as
+                :func:`~.selection.settled` and :func:`~.selection.close_rivals` read them."""
+                return {k: {"eligible": v["eligible"], "rmse_fit": v["result"].rmse_fit}
+                        for k, v in self.refits_.items()}
+
             def settled_by(cid):
-                return settled(self.rule, {k: {"eligible": v["eligible"], "rmse_fit": v["result"].rmse_fit}
-                                           for k, v in self.refits_.items()}, self.floor_, exclude=cid)
+                return settled(self.rule, fit_summary(), self.floor_, exclude=cid)
 
             skipped = {}    # candidate -> the candidate that settled it (its further starts skipped)
 
@@ -1461,9 +1467,7 @@ class Diagnosis:
                 prev = self.refits_[lead]["result"]
                 if prev.budget_hit and self.refits_[lead]["explained"] > 0 and lead not in continued:
                     continue_fit(lead, "the leading candidate")
-                close = close_rivals(self.rule, {k: {"eligible": v["eligible"], "rmse_fit": v["result"].rmse_fit}
-                                                 for k, v in self.refits_.items()}, self.floor_)
-                for cid in close:
+                for cid in close_rivals(self.rule, fit_summary(), self.floor_):
                     if self.refits_[cid]["result"].budget_hit and cid not in continued:
                         continue_fit(cid, "the close rival")
 

@@ -298,8 +298,7 @@ def close_rivals(rule: SelectionRule, refits: dict, floor: float) -> list:
     list of str
         Their ids in ``refits`` order; [] when fewer than two.
     """
-    lim = min(rule.rival_floor, rule.max_remaining) * floor
-    close = [k for k, v in refits.items() if v["eligible"] and v["rmse_fit"] <= lim]
+    close = _within_rival_floor(rule, refits, floor)
     return close if len(close) >= 2 else []
 
 
@@ -322,5 +321,12 @@ def settled(rule: SelectionRule, refits: dict, floor: float, *, exclude: str | N
     str or None
         The first such candidate's id (in ``refits`` order), or None.
     """
+    return next((k for k in _within_rival_floor(rule, refits, floor) if k != exclude), None)
+
+
+def _within_rival_floor(rule: SelectionRule, refits: dict, floor: float) -> list:
+    """Ids (in ``refits`` order) of the eligible candidates leaving the fit within
+    ``rule.rival_floor`` noise floors, and within ``rule.max_remaining`` (so that they explain
+    the mismatch): the test shared by :func:`close_rivals` and :func:`settled`."""
     lim = min(rule.rival_floor, rule.max_remaining) * floor
-    return next((k for k, v in refits.items() if k != exclude and v["eligible"] and v["rmse_fit"] <= lim), None)
+    return [k for k, v in refits.items() if v["eligible"] and v["rmse_fit"] <= lim]
