@@ -10,7 +10,7 @@ from __future__ import annotations
 import json
 import math
 from argparse import Namespace
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import pytest
@@ -436,6 +436,53 @@ def test_linear_step_is_the_gauss_newton_step_tried_with_model_runs():
     # only half of it: a quarter of the residual energy (the residual is linear)
     x, rss = linear_step(model, h, first, [0], fractions=(0.5,))
     assert rss == pytest.approx(0.25 * first.rss_fit, rel=1e-6)
+
+
+class _RippledDelayModel(_LinearModel):
+    """A band-encoder delay (residual linear in it, zero at DELAY, s; a sensor change, so no
+    model run depends on it) on a base whose cost is rippled like the impacts': linear with its
+    optimum half a ripple period (the finite-difference probe) from TARGET, plus a ripple that is
+    zero at TARGET and at whole periods. A forward-difference Jacobian at TARGET sees no ripple."""
+
+    DELAY = 0.012
+    A = np.random.default_rng(5).normal(size=15)
+    PERIOD = np.array([p.probe for p in CALIBRATED])
+    Z_OPT = 0.5 * PERIOD
+
+    def residuals(self, points, which):
+        t = self.TARGET
+        out = []
+        for mc, sc in points:
+            z = np.array([math.log(mc[k] / t[k]) for k in ("k_c", "b_c", "k_imp", "mu_k")]
+                         + [math.log((mc["mu_s"] - mc["mu_k"]) / (t["mu_s"] - t["mu_k"]))])
+            ripple = np.sqrt(1.0 - np.cos(2 * math.pi * z / self.PERIOD))
+            delay = 100.0 * self.A * (sc.get("encoder_delay_b", 0.0) - self.DELAY)
+            out.append(np.concatenate([self.M @ (z - self.Z_OPT), ripple, delay] * len(which)))
+        return out
+
+
+def test_linear_step_also_tries_the_candidates_own_step_with_the_base_held():
+    # a fit stalled in a ripple of the base's cost with the delay short of its optimum
+    # (encoder_delay seed 32): the full step, led by the base's smooth part, lands on the ripple
+    # and fits worse; the delay's own step, the base held, removes the delay's part of the residual
+    model = _RippledDelayModel()
+    h = Hypothesis(_LinearModel.TARGET, CANDIDATES["encoder_delay"])
+    x0 = h.coordinates({**_LinearModel.TARGET, "encoder_delay": 0.0097})
+    J, f0 = jacobian(model, h, x0, [0])
+    some_fit = fit_hypothesis(model, h, [0], x0=x0, max_jac=1)
+    stalled = replace(some_fit, x=x0, J=J, rss_fit=float(f0 @ f0))
+    base_part = float(np.sum(f0[:-15] ** 2))   # what the delay cannot fit
+    x_full, rss_full = linear_step(model, h, stalled, [0], own=False)
+    x, rss = linear_step(model, h, stalled, [0])
+    assert rss_full > stalled.rss_fit   # the full step alone: worse than where the fit stalled
+    assert rss == pytest.approx(base_part, rel=1e-9) and rss < 0.5 * stalled.rss_fit
+    assert h.values(x)["encoder_delay"] == pytest.approx(_RippledDelayModel.DELAY, rel=1e-9)
+    assert np.array_equal(x[:h.n_base], x0[:h.n_base])   # the base held
+    # the base model has no own step: the same as the full step alone
+    hb = Hypothesis(START)
+    first = fit_hypothesis(_LinearModel(), hb, [0], max_jac=1)
+    assert np.array_equal(linear_step(_LinearModel(), hb, first, [0])[0],
+                          linear_step(_LinearModel(), hb, first, [0], own=False)[0])
 
 
 def test_a_stalled_calibration_is_restarted_from_its_linear_step_and_a_finished_one_is_kept():

@@ -84,8 +84,9 @@ def _build_parser():
                     "leading candidate or close rival with (default twice --max-jac; 0: never)")
     ap.add_argument("--unstall", type=int, default=2,
                     help="when the calibration or a candidate's refit ends above the mismatch threshold, at "
-                    "most this many times try its full linear step and, when that fits clearly better (a "
-                    "stall), fit again from there (default 2; 0: never)")
+                    "most this many times try its full linear step (for a refit also the candidate's own step, the "
+                    "base held) and, when one fits clearly better (a stall), fit again from there (default 2; "
+                    "0: never)")
     ap.add_argument("--keep-runs", action="store_true",
                     help="keep the model runs saved in DIR/checkpoint after the diagnosis finishes (by default "
                     "they are removed then; while it runs they let an interrupted diagnosis resume: re-run "

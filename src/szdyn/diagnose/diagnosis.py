@@ -29,8 +29,9 @@ Steps (each a module of its own):
    take that answer if it names an effect (``weighting="fallback"``).
 
 A calibration or a candidate's refit that ends above the mismatch threshold is checked for a
-stall: its full linear (Gauss-Newton) step is tried with model runs, and where that fits clearly
-better the fit starts again from there (``unstall``).
+stall: its full linear (Gauss-Newton) step is tried with model runs, and for a refit also the
+step in the candidate's own coordinates with the base held (the ripple of the impacts lives in
+the base); where one fits clearly better the fit starts again from there (``unstall``).
 
 Budgets: every nonlinear fit is capped in Jacobians (``max_jac``; calibration ``2 max_jac``).
 A fit stopped by its cap is *continued* with ``polish_jac`` more where the answer depends on
@@ -212,9 +213,9 @@ class Diagnosis:
     unstall : int
         When the calibration, or a candidate's refit (the best of its starts), ends above the
         mismatch threshold, at most this many times try its full linearised (Gauss-Newton) step
-        with model runs and, when that fits better by more than ``rule.min_dbic`` in the
-        information criterion, fit again from there (a stalled fit, not a minimum:
-        :func:`~.fit.linear_step`). 0: never.
+        with model runs (for a refit also the candidate's own step, the base held) and, when
+        one fits better by more than ``rule.min_dbic`` in the information criterion, fit again
+        from there (a stalled fit, not a minimum: :func:`~.fit.linear_step`). 0: never.
     rivals : int
         When the candidate the shortlist selects leaves the fit above ``rule.rival_floor`` noise
         floors, the next this many of the linear screening are refitted too before deciding
