@@ -472,7 +472,7 @@ def test_linear_step_also_tries_the_candidates_own_step_with_the_base_held():
     some_fit = fit_hypothesis(model, h, [0], x0=x0, max_jac=1)
     stalled = replace(some_fit, x=x0, J=J, rss_fit=float(f0 @ f0))
     base_part = float(np.sum(f0[:-15] ** 2))   # what the delay cannot fit
-    x_full, rss_full = linear_step(model, h, stalled, [0], own=False)
+    _, rss_full = linear_step(model, h, stalled, [0], own=False)
     x, rss = linear_step(model, h, stalled, [0])
     assert rss_full > stalled.rss_fit   # the full step alone: worse than where the fit stalled
     assert rss == pytest.approx(base_part, rel=1e-9) and rss < 0.5 * stalled.rss_fit
