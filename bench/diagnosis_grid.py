@@ -42,8 +42,10 @@ def run_case(work: Path, effect: str, seed: int, diag_args, current: float | Non
     data, out = case / "data", case / "diagnosis"
     if not (data / "truth.json").is_file():
         more = [] if current is None else ["--current", repr(current)]
+        # --overwrite: the work directory is the grid's own; a set without truth.json is unfinished
         subprocess.run([sys.executable, "-m", "szdyn.run", "synth", "--out", str(data), "--effect", effect,
-                        "--seed", str(seed), "--loads", "0.5,1", "--dt", "5e-5", "--quiet", *more], check=True)
+                        "--seed", str(seed), "--loads", "0.5,1", "--dt", "5e-5", "--quiet", "--overwrite",
+                        *more], check=True)
     if ("[motor]" in (data / "manifest.toml").read_text()) != (current is not None):
         # a work directory holds recordings with or without the current, not both
         raise SystemExit(f"{data}: recordings {'without' if current is not None else 'with'} a current "

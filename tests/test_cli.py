@@ -112,3 +112,29 @@ def test_sweep_and_regime_commands_are_registered(capsys):
         with pytest.raises(SystemExit) as exc:
             main([cmd, "--help"])
         assert exc.value.code == 0
+
+
+def test_a_mistyped_command_is_named_and_help_lists_the_commands(capsys):
+    assert main(["diagnos", "m.toml", "--out", "d"]) == 2
+    err = capsys.readouterr().err
+    assert "unknown command 'diagnos' (did you mean 'diagnose'?)" in err and "Traceback" not in err
+    with pytest.raises(SystemExit):
+        main(["--help"])
+    out = capsys.readouterr().out
+    assert all(f"  {cmd} " in out for cmd in ("simulate", "sweep", "regime", "synth", "diagnose"))
+
+
+def test_ctrl_c_inside_a_compiled_function_counts_as_an_interrupt():
+    """CPython raises SystemError ('returned a result with an exception set') with the
+    KeyboardInterrupt as its cause when Ctrl-C lands as a Numba function returns."""
+    from szdyn.errors import interrupted
+
+    try:
+        try:
+            raise KeyboardInterrupt
+        except KeyboardInterrupt as ki:
+            raise SystemError("CPUDispatcher(...) returned a result with an exception set") from ki
+    except SystemError as exc:
+        assert interrupted(exc)
+    assert interrupted(KeyboardInterrupt())
+    assert not interrupted(SystemError("a real one")) and not interrupted(ValueError())

@@ -1262,6 +1262,26 @@ def test_torque_sensor_noise_is_the_noise_of_the_smoothed_current():
     assert prepare_one(rec, default_parameters(), "fit").tau is None
 
 
+def test_a_recording_too_coarse_for_the_speed_window_is_refused():
+    """A time column in ms read as s samples every 2 s: no speed can be estimated over 0.1 s."""
+    from szdyn.diagnose.data import prepare_one
+    from szdyn.defaults import default_parameters
+    from szdyn.recordings import Recording
+
+    t = 2.0 * np.arange(500)
+    rec = Recording(name="ms.csv", t=t, theta_w=3e-3 * t, theta_b=3e-3 * t)
+    with pytest.raises(UserInputError, match=r"'ms.csv' is sampled every 2 s .* in seconds\?"):
+        prepare_one(rec, default_parameters(), "fit")
+    ok = Recording(name="ok.csv", t=t / 80, theta_w=0.24 * t, theta_b=0.24 * t)   # 40 Hz: 4 per window
+    assert prepare_one(ok, default_parameters(), "fit").y.size > 0
+
+
+def test_candidates_that_name_none_are_refused(tmp_path, capsys):
+    assert run_main(["diagnose", str(tmp_path / "m.toml"), "--out", str(tmp_path / "o"),
+                     "--candidates", ","]) == 2
+    assert "--candidates ',' names no candidate" in capsys.readouterr().err
+
+
 def test_motor_torque_tells_the_force_scale_apart(lift_current):
     """Every force coefficient and the lift a quarter larger (``bench/force_scale.py``'s
     direction) slip almost alike (the band speed barely moves) but draw a quarter more motor

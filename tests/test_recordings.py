@@ -56,7 +56,28 @@ BROKEN = [
     ("t,theta_w\n0,0\n0.1,0.1\n", 1, None, "missing required column 'theta_b' (found: t, theta_w)"),
     ("t,theta_w,theta_b,t\n0,0,0,0\n", 1, None, "appears twice"),
     ("t,theta_w,theta_b\n0,0,0\n0.1,0.1,0.1,7\n", 3, None, "extra value"),
+    # float() reads these as 10 and 12; no logger writes them
+    ("t,theta_w,theta_b\n0,0,0\n0.1,1_0,0.1\n", 3, "theta_w", "expected a number, got '1_0'"),
+    ("t,theta_w,theta_b\n0,0,0\n0.1,0.1,\u0661\u0662\n", 3, "theta_b", "expected a number"),
+    ("t;theta_w;theta_b\n0;0;0\n", 1, None, "one field holding semicolons"),
+    ("t\ttheta_w\ttheta_b\n0\t0\t0\n", 1, None, "one field holding tabs"),
+    # a mistyped time (1 ms sampling, then 1000 s): the model would be run over the gap
+    ("t,theta_w,theta_b\n0,0,0\n0.001,0,0\n0.002,0,0\n1000,0,0\n", 5, "t",
+     "time jumps by 999.998 s (from 0.002 s on line 4 to 1000 s)"),
+    # a corrupted angle: 1e300 rad in 1 ms
+    ("t,theta_w,theta_b\n0,0,0\n0.001,0,0\n0.002,0,1e300\n", 4, "theta_b", "angle jumps by 1e+300 rad"),
+    ("t,theta_w,theta_b,omega_ref\n0,0,0,0\n0.001,0,0,3e7\n", 3, "omega_ref", "speed set-point 3e+07"),
 ]
+
+
+def test_gaps_and_speeds_a_logger_writes_are_accepted(tmp_path):
+    """The plausibility limits leave real logs alone: dropped rows (a 0.9 s hole at 1 kHz, 900
+    intervals, is under both limits), and one encoder count per microsecond-scale step."""
+    t = np.concatenate([np.arange(0, 1, 1e-3), np.arange(1.9, 2.5, 1e-3)])
+    text = "t,theta_w,theta_b\n" + "".join(f"{v:.6f},{3 * v:.6f},{2.9 * v:.6f}\n" for v in t)
+    assert len(read_recording(_write(tmp_path, text))) == t.size
+    text = "t,theta_w,theta_b\n0,0,0\n0.000001,0.0015,0\n0.002,0.003,0\n"
+    assert len(read_recording(_write(tmp_path, text))) == 3
 
 
 @pytest.mark.parametrize("text,line,column,msg", BROKEN)
@@ -187,6 +208,17 @@ MANIFEST_ERRORS = [
     ('[split]\nheld = 0.5\n[[recording]]\nfile = "ramp1.csv"\n', "unknown key 'held' (did you mean 'heldout'?)"),
     ('[split]\nheldout = 1.5\n[[recording]]\nfile = "ramp1.csv"\n', "fraction must be in [0, 1)"),
     ('[[recording]]\nfile = "ramp1.csv"\n[[recording]]\nfile = "ramp1.csv"\n', "listed twice"),
+    ('[[recording]]\nfile = "ramp1.csv"\n[[recording]]\nfile = "./ramp1.csv"\n',
+     "'./ramp1.csv' is the same file as 'ramp1.csv' ([[recording]] 1 and 2)"),
+    ('[[recording]]\nfile = "."\n', "is a directory, expected a CSV file"),
+    ('[split]\nheldout = []\n[[recording]]\nfile = "ramp1.csv"\n', "holds out no recording"),
+    ('[split]\nheldout = 0\n[[recording]]\nfile = "ramp1.csv"\n', "holds out no recording"),
+    # values checked when read, naming the table (not at the recording's turn in a diagnosis)
+    ('[model]\nmu_k = -0.3\n[[recording]]\nfile = "ramp1.csv"\n', "[model]: parameter 'mu_k' must be >= 0"),
+    ('[model]\nn_rollers = 2.5\n[[recording]]\nfile = "ramp1.csv"\n', "[model]: parameter 'n_rollers'"),
+    ('[model]\nmu_s = 0.1\nmu_k = 0.2\n[[recording]]\nfile = "ramp1.csv"\n', "[model]: parameter 'mu_k' must be <= mu_s"),
+    ('[model]\nm_b = 2.0\n[[recording]]\nfile = "ramp1.csv"\nload_kg = 1.0\n',
+     "[model]: 'm_b' is the load, which 'load_kg' sets per [[recording]]"),
     ('[model]\nmu_k = \n', "invalid TOML"),
     ('', "no recordings"),
 ]
@@ -202,6 +234,15 @@ def test_manifest_errors(tmp_path, text, msg):
     assert str(ei.value).startswith("exp.toml")
     assert msg in str(ei.value)
     assert isinstance(ei.value, UserInputError)
+
+
+def test_manifest_with_a_byte_order_mark_and_m_b_without_loads(tmp_path):
+    _write(tmp_path, GOOD)
+    m = tmp_path / "exp.toml"
+    m.write_bytes(b"\xef\xbb\xbf" + b'[model]\nm_b = 2.0\n[[recording]]\nfile = "ramp1.csv"\n')
+    man = read_manifest(m)
+    assert man.model == {"m_b": 2.0}
+    assert man.parameters(man.entries[0])["m_b"] == 2.0
 
 
 # --------------------------------------------------------------------------- features

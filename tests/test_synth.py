@@ -10,7 +10,7 @@ import math
 
 import pytest
 
-from szdyn.errors import UserInputError
+from szdyn.errors import SimulationError, UserInputError
 from szdyn.manifest import read_manifest
 from szdyn.recordings import read_recording
 from szdyn.synth import (DEFAULT_RAMPS, EFFECT_IDS, EFFECTS, PERTURBED, QUICK_N_CIRCLES, QUICK_RAMPS,
@@ -227,6 +227,7 @@ def test_unknown_effect_names_it_and_suggests(tmp_path):
     (["--out", "X", "--effect", "slider_viscous", "--amplitude", "-0.1"], ">= 0"),
     (["--out", "X", "--seed", "-1"], "seed"),
     (["--out", "X", "--bogus"], "unrecognized"),
+    (["--out", "X", "--dt", "1e-3"], "--dt must be <= 0.0005 s"),
 ])
 def test_cli_mistakes_are_user_errors(tmp_path, argv, match):
     argv = [str(tmp_path / a) if a == "X" else a for a in argv]
@@ -245,3 +246,22 @@ def test_cli_quick_run(tmp_path, capsys):
     assert truth["effect"] == "friction_asymmetry" and truth["amplitude_drawn"]
     assert 0.1 <= abs(truth["effect_parameters"]["fric_asym"]) <= 0.3
     assert set(EFFECT_IDS) == {"none", *EFFECTS}
+
+
+def test_cli_keeps_what_is_there_and_a_failed_run_changes_nothing(tmp_path):
+    d = tmp_path / "d"
+    args = ["--out", str(d), "--quick", "--quiet", "--loads", "1"]
+    assert synth_command(args) == 0
+    before = _files(d)
+    with pytest.raises(SynthError, match="already holds load1kg_down.csv, .*pass --overwrite"):
+        synth_command(args + ["--seed", "3"])
+    assert _files(d) == before
+    # the 1 kg recordings are made (in the staging directory), then the 1e6 kg truth fails
+    with pytest.raises(SimulationError, match="nothing was written to"):
+        synth_command(args + ["--overwrite", "--loads", "1,1e6"])
+    assert _files(d) == before and [p.name for p in d.iterdir() if p.is_dir()] == []
+    assert synth_command(args + ["--overwrite", "--seed", "3"]) == 0
+    assert _files(d).keys() == before.keys() and _files(d) != before
+    (tmp_path / "f").write_text("x")
+    with pytest.raises(SynthError, match="is a file, expected a directory"):
+        synth_command(["--out", str(tmp_path / "f"), "--quick", "--quiet"])

@@ -25,3 +25,16 @@ class UserInputError(ValueError):
 
 class ParameterError(UserInputError):
     """A model parameter is missing, unknown, non-finite or outside its physical range."""
+
+
+def interrupted(exc: BaseException) -> bool:
+    """True for Ctrl-C: a :class:`KeyboardInterrupt`, or the :class:`SystemError` ("returned a
+    result with an exception set") CPython raises, with the interrupt as its cause, when Ctrl-C
+    lands while a compiled (Numba) function returns."""
+    while exc is not None:
+        if isinstance(exc, KeyboardInterrupt):
+            return True
+        if not isinstance(exc, SystemError):
+            return False
+        exc = exc.__cause__ or exc.__context__
+    return False

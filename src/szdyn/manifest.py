@@ -22,14 +22,17 @@ A manifest is a TOML file (read with :mod:`tomllib` only)::
     note = "first ramp, fresh band"
     # torque_constant = 0.05  # overrides [motor] for this recording (N m/A)
 
-Known keys of a ``[[recording]]``: ``file`` (required), ``load_kg`` (number > 0, sets the
-model's ``m_b``), ``n_circles`` (positive integer), ``note`` (text), ``torque_constant``
-(number > 0, N m/A; with the recording's ``current`` column it gives the measured motor torque,
-which the diagnosis compares with the model's). Unknown keys anywhere
-are errors with a did-you-mean suggestion; ``[model]`` names are checked against
-``szdyn_generated.spiral_zipper.PARAM_NAMES`` and values must be real numbers (not booleans,
-not strings). Errors are :class:`ManifestError` (a :class:`~szdyn.errors.UserInputError`)
-naming the manifest file and the table/key, e.g.
+Known keys of a ``[[recording]]``: ``file`` (required; two names of one file are refused),
+``load_kg`` (number > 0, sets the model's ``m_b``, so ``[model] m_b`` is refused beside it),
+``n_circles`` (positive integer), ``note`` (text), ``torque_constant`` (number > 0, N m/A; with
+the recording's ``current`` column it gives the measured motor torque, which the diagnosis
+compares with the model's). Unknown keys anywhere are errors with a did-you-mean suggestion;
+``[model]`` names are checked against ``szdyn_generated.spiral_zipper.PARAM_NAMES`` and values
+must be real numbers (not booleans, not strings), and the overrides with each recording's
+conditions must make a valid parameter set (checked when read, so the message names the table).
+``[split] heldout`` must hold out at least one recording and not all. A UTF-8 byte-order mark
+is accepted. Errors are :class:`ManifestError` (a :class:`~szdyn.errors.UserInputError`) naming
+the manifest file and the table/key, e.g.
 ``experiments.toml, [[recording]] 2 ('ramp2.csv'): unknown key 'load_k' (did you mean
 'load_kg'?)``.
 """
@@ -215,10 +218,14 @@ def read_manifest(path, *, check_files: bool = True) -> Manifest:
     path = Path(path)
     nm = path.name
     try:
-        with open(path, "rb") as fh:
-            data = tomllib.load(fh)
+        raw = path.read_bytes()
+        # editors on Windows save UTF-8 with a byte-order mark; TOML does not allow one, the
+        # recordings' reader accepts it, so the manifest does too
+        data = tomllib.loads(raw.removeprefix(b"\xef\xbb\xbf").decode("utf-8"))
     except FileNotFoundError:
         raise ManifestError(f"{nm}: file not found") from None
+    except IsADirectoryError:
+        raise ManifestError(f"{nm}: is a directory, expected a TOML file") from None
     except tomllib.TOMLDecodeError as exc:
         raise ManifestError(f"{nm}: invalid TOML: {exc}") from None
     except UnicodeDecodeError as exc:
@@ -254,9 +261,12 @@ def read_manifest(path, *, check_files: bool = True) -> Manifest:
         f = r["file"]
         if not isinstance(f, str) or not f.strip():
             raise ManifestError(f"{label}: 'file' must be a non-empty string, got {f!r}")
-        if f in seen:
-            raise ManifestError(f"{label}: file '{f}' is listed twice ([[recording]] {seen[f]} and {i})")
-        seen[f] = i
+        full = (base_dir / f).resolve()
+        if full in seen:
+            j, g = seen[full]
+            same = f"file '{f}' is listed twice" if g == f else f"'{f}' is the same file as '{g}'"
+            raise ManifestError(f"{label}: {same} ([[recording]] {j} and {i})")
+        seen[full] = (i, f)
         cond = {}
         if "load_kg" in r:
             v = r["load_kg"]
@@ -275,7 +285,8 @@ def read_manifest(path, *, check_files: bool = True) -> Manifest:
         kt = None
         if "torque_constant" in r:
             kt = _torque_constant(r["torque_constant"], label)
-        full = (base_dir / f).resolve()
+        if check_files and full.is_dir():
+            raise ManifestError(f"{label}: {full} is a directory, expected a CSV file")
         if check_files and not full.is_file():
             raise ManifestError(f"{label}: recording file not found: {full}")
         entries.append(ManifestEntry(file=full, name=f, conditions=cond, torque_constant=kt))
@@ -306,6 +317,25 @@ def read_manifest(path, *, check_files: bool = True) -> Manifest:
                 raise ManifestError(f"{nm}, [model]: parameter '{key}' must be a finite number, "
                                     f"got {v!r}")
             model[key] = float(v)
+        loaded = [e.name for e in entries if "load_kg" in e.conditions]
+        if "m_b" in model and loaded:
+            raise ManifestError(f"{nm}, [model]: 'm_b' is the load, which 'load_kg' sets per "
+                                f"[[recording]] (given in {len(loaded)} of them); set load_kg "
+                                "there instead")
+    # the overrides, then each recording's conditions with them, checked now: a bad value found
+    # later, at the recording's turn in a diagnosis, would name neither the file nor the table
+    from szdyn.defaults import default_parameters
+    from szdyn.errors import ParameterError
+
+    try:
+        default_parameters().replace(**model)
+    except ParameterError as exc:
+        raise ManifestError(f"{nm}, [model]: {exc}") from None
+    for i, e in enumerate(entries, start=1):
+        try:
+            Manifest(path=path, entries=(), model=model).parameters(e)
+        except ParameterError as exc:
+            raise ManifestError(f"{nm}, [[recording]] {i} ('{e.name}'): {exc}") from None
 
     heldout = ()
     if "split" in data:
@@ -332,6 +362,10 @@ def read_manifest(path, *, check_files: bool = True) -> Manifest:
         else:
             raise ManifestError(f"{nm}, [split]: 'heldout' must be a list of file names or a "
                                 f"fraction, got {h!r}")
+        if not heldout:
+            raise ManifestError(f"{nm}, [split]: 'heldout' = {h!r} holds out no recording; "
+                                "calibration is judged on held-out recordings: name at least one, "
+                                "or remove [split] to let szdyn choose")
         if len(heldout) == len(entries):
             raise ManifestError(f"{nm}, [split]: every recording is held out; nothing is left "
                                 "for calibration")

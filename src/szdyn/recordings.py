@@ -31,9 +31,13 @@ as an editor shows it) and the column, e.g.::
     ramp1.csv, line 1: missing required column 'theta_b' (found: t, theta_w)
     ramp1.csv: empty file (no data rows)
 
-Rejected: unreadable or non-UTF-8 file, no header, missing required column, repeated column
-name, a row with too few or too many fields, an empty cell, a non-number, NaN or infinity,
-time going backwards, fewer than two data rows.
+Rejected: unreadable or non-UTF-8 file, no header, missing required column (with a hint when
+the file uses another delimiter than the comma), repeated column name, a row with too few or too
+many fields, an empty cell, a non-number (a decimal number as loggers write it: no ``1_000``, no
+hex), NaN or infinity, time going backwards, fewer than two data rows, and two things no working
+logger writes: a time step longer than both 1 s and 1000 median sample intervals (a mistyped time
+or a logger restart; :data:`GAP_FACTOR`, :data:`GAP_MIN_S`), and an angle step implying more
+than 10^4 rad/s (a corrupted value or an encoder glitch; :data:`MAX_SPEED`).
 
 Duplicate timestamps (decision): a row that repeats the previous row *exactly* (same ``t``
 and same values in every used column) is a logger re-send; it is dropped and a note is kept
@@ -65,6 +69,7 @@ from __future__ import annotations
 
 import csv
 import math
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Mapping
@@ -204,15 +209,33 @@ class Recording:
 
 
 # --------------------------------------------------------------------------- reader
+#: a decimal number as loggers write it. Python's float() also takes '1_0' (as 10) and digits of
+#: other scripts ('١٢'), which no logger writes: a cell like that is a typo, not a value
+_NUMBER = re.compile(r"[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?", re.ASCII)
+_NON_FINITE = re.compile(r"[+-]?(nan|inf|infinity)", re.IGNORECASE)
+#: largest angular speed a recording may imply between two samples (rad/s), about 95,000 rpm:
+#: an order above any motor of such a rig (the thesis's wheel turns at a few rad/s). A larger
+#: jump is a corrupted value or an encoder glitch, which would wreck every fit downstream
+MAX_SPEED = 1e4
+#: a time step longer than both this many median sample intervals and GAP_MIN_S is refused: a
+#: mistyped time or a logger restart (the model would be run over the whole gap); dropped rows
+#: make gaps of a few intervals and are accepted
+GAP_FACTOR = 1000.0
+GAP_MIN_S = 1.0
+_DELIMITERS = {";": "semicolon", "\t": "tab", "|": "vertical bar"}
+
+
 def _parse_number(text: str, path, line: int, column: str) -> float:
     s = text.strip()
     if s == "":
         raise RecordingError("empty cell (expected a number)", path=path, line=line, column=column)
-    try:
-        v = float(s)
-    except ValueError:
-        raise RecordingError(f"expected a number, got {text.strip()!r}", path=path, line=line,
-                             column=column) from None
+    if _NON_FINITE.fullmatch(s):
+        raise RecordingError(f"non-finite value {s!r} (NaN or infinity)", path=path, line=line,
+                             column=column)
+    if not _NUMBER.fullmatch(s):
+        raise RecordingError(f"expected a number, got {s!r}", path=path, line=line,
+                             column=column)
+    v = float(s)
     if not math.isfinite(v):
         raise RecordingError(f"non-finite value {s!r} (NaN or infinity)", path=path, line=line,
                              column=column)
@@ -286,8 +309,12 @@ def _read(fh, path, conditions, name) -> Recording:
                 seen[c] = i
             for req in REQUIRED_COLUMNS:
                 if req not in seen:
+                    found = [name for d, name in _DELIMITERS.items() if d in header[0]]
+                    hint = (f"; the header is one field holding {found[0]}s: szdyn reads "
+                            "comma-separated values, save the file with commas"
+                            if len(header) == 1 and found else "")
                     raise RecordingError(f"missing required column '{req}' (found: "
-                                         + ", ".join(header) + ")", path=path, line=line)
+                                         + ", ".join(header) + ")" + hint, path=path, line=line)
             used = [c for c in REQUIRED_COLUMNS + OPTIONAL_COLUMNS if c in seen]
             index = {c: seen[c] for c in used}
             continue
@@ -321,6 +348,7 @@ def _read(fh, path, conditions, name) -> Recording:
         notes.append(f"dropped {dropped} exact duplicate row(s), the first on line {first_drop}")
     data = np.array([v for _, v in rows], dtype=float)
     cols = {c: data[:, i] for i, c in enumerate(used)}
+    _check_plausible(cols, [ln for ln, _ in rows], path)
     extra = tuple(c for c in header if c not in used)
     if extra:
         notes.append("ignored column(s): " + ", ".join(extra))
@@ -329,6 +357,36 @@ def _read(fh, path, conditions, name) -> Recording:
                      current=cols.get("current"), conditions=dict(conditions or {}),
                      source=path, extra_columns=extra, notes=notes,
                      meta={"header_line": header_line})
+
+
+def _check_plausible(cols: dict, lines: list, path) -> None:
+    """Refuse time gaps and angle jumps no logger of a working rig writes (see GAP_FACTOR and
+    MAX_SPEED): each is a typo or a glitch at a line the message names."""
+    dt = np.diff(cols["t"])
+    med = float(np.median(dt))
+    lim = max(GAP_MIN_S, GAP_FACTOR * med)
+    k = int(np.argmax(dt))
+    if dt[k] > lim:
+        raise RecordingError(
+            f"time jumps by {dt[k]:.6g} s (from {cols['t'][k]:.6g} s on line {lines[k]} to "
+            f"{cols['t'][k + 1]:.6g} s), {dt[k] / med:.3g} times the median sample interval "
+            f"{med:.3g} s: a mistyped time or a logger restart? Fix the time, or split the "
+            "recording there", path=path, line=lines[k + 1], column="t")
+    for c in ("theta_w", "theta_b"):
+        with np.errstate(over="ignore"):
+            speed = np.abs(np.diff(cols[c])) / dt
+        k = int(np.argmax(speed))
+        if not speed[k] <= MAX_SPEED:
+            raise RecordingError(
+                f"angle jumps by {cols[c][k + 1] - cols[c][k]:.6g} rad in {dt[k]:.3g} s (from line "
+                f"{lines[k]}), {speed[k]:.3g} rad/s, more than {MAX_SPEED:g} rad/s: a corrupted "
+                "value or an encoder glitch?", path=path, line=lines[k + 1], column=c)
+    if "omega_ref" in cols:
+        k = int(np.argmax(np.abs(cols["omega_ref"])))
+        if abs(cols["omega_ref"][k]) > MAX_SPEED:
+            raise RecordingError(f"speed set-point {cols['omega_ref'][k]:.6g} rad/s is beyond "
+                                 f"{MAX_SPEED:g} rad/s: a corrupted value, or not in rad/s?",
+                                 path=path, line=lines[k], column="omega_ref")
 
 
 # --------------------------------------------------------------------------- derived signals

@@ -9,11 +9,12 @@ recordings, locate the mismatch, name the missing effect, refit). ``COMMAND --he
 from __future__ import annotations
 
 import argparse
+import difflib
 import math
 import sys
 from pathlib import Path
 
-from .errors import ParameterError, SimulationError, UserInputError
+from .errors import ParameterError, SimulationError, UserInputError, interrupted
 
 METHODS = ("rk4", "heun", "dopri5")
 CONTACT_MODELS = ("impact", "coulomb", "lugre")
@@ -68,6 +69,9 @@ def build_parser() -> argparse.ArgumentParser:
         description="Simulate the Spiral Zipper (impact-friction model of Lee 2021) and its friction "
                     "counter-models. Writes a CSV per run, a PNG like the thesis's Fig. 10, params.json and "
                     "thesis-fig10.json (the thesis's findings as criteria, measured, with pass/fail).",
+        epilog="commands (python -m szdyn.run COMMAND --help for each):\n"
+               + "\n".join(f"  {name:9s} {text}" for name, text in COMMAND_HELP.items()),
+        formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     ap.add_argument("--scenario", default="thesis-fig10", choices=sorted(SCENARIOS),
                     help="scenario to run (default: %(default)s)")
@@ -170,6 +174,13 @@ def diagnose_command(argv) -> int:
 
 COMMANDS = {"simulate": simulate_command, "sweep": sweep_command, "regime": regime_command,
             "synth": synth_command, "diagnose": diagnose_command}
+COMMAND_HELP = {
+    "simulate": "the default: a scenario on a parameter set (the options above)",
+    "sweep": "SPEC.toml: parameter sweeps, parallel and resumable",
+    "regime": "regime map (stick / partial slip / full slip)",
+    "synth": "synthetic recordings with a concealed effect",
+    "diagnose": "MANIFEST.toml --out DIR: calibrate, locate the mismatch, name the missing effect",
+}
 
 
 def main(argv=None) -> int:
@@ -177,6 +188,13 @@ def main(argv=None) -> int:
     command = "simulate"
     if argv and argv[0] in COMMANDS:
         command = argv.pop(0)
+    elif argv and not argv[0].startswith("-"):
+        # simulate takes no positional argument: a first word is a mistyped command
+        close = difflib.get_close_matches(argv[0], list(COMMANDS), n=1)
+        hint = f" (did you mean '{close[0]}'?)" if close else ""
+        print(f"szdyn: error: unknown command '{argv[0]}'{hint}; commands: {', '.join(COMMANDS)}",
+              file=sys.stderr)
+        return 2
     try:
         return COMMANDS[command](argv)
     except (UserInputError, ParameterError) as exc:
@@ -185,7 +203,9 @@ def main(argv=None) -> int:
     except SimulationError as exc:
         print(f"szdyn: simulation failed: {exc}", file=sys.stderr)
         return 1
-    except KeyboardInterrupt:
+    except (KeyboardInterrupt, SystemError) as exc:
+        if not interrupted(exc):
+            raise
         print("szdyn: interrupted", file=sys.stderr)
         return 130
 

@@ -88,7 +88,10 @@ import argparse
 import difflib
 import json
 import math
+import os
+import shutil
 import sys
+import tempfile
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -355,7 +358,9 @@ def synthesize(out_dir, effect: str = "none", amplitude=None, seed: int = 0,
     Parameters
     ----------
     out_dir : str or Path
-        Created if missing; existing files of the same names are replaced (atomically).
+        Created if missing. The files are written into a staging directory inside it and
+        moved in together at the end, replacing files of the same names: a run that fails
+        leaves ``out_dir`` as it was.
     effect : str
         An id of :data:`EFFECTS` or ``"none"``.
     amplitude : float, optional
@@ -394,8 +399,7 @@ def synthesize(out_dir, effect: str = "none", amplitude=None, seed: int = 0,
         If the truth integration fails (try a smaller ``dt``).
     """
     from szdyn.defaults import default_parameters
-    from szdyn.sensors import SensorModel, apply_sensor, motor_torque, write_recording
-    from szdyn.simulate import simulate
+    from szdyn.sensors import SensorModel
 
     check_effect(effect)
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
@@ -447,11 +451,40 @@ def synthesize(out_dir, effect: str = "none", amplitude=None, seed: int = 0,
         dt = dt_new
 
     out = Path(out_dir)
+    if out.exists() and not out.is_dir():
+        raise SynthError(f"output directory {out} is a file")
     out.mkdir(parents=True, exist_ok=True)
+    # everything is written into a staging directory and moved in at the end: a run that fails
+    # half-way (an unphysical truth, Ctrl-C) leaves the directory as it was, never a mix of old
+    # and new recordings
+    stage = Path(tempfile.mkdtemp(prefix=".synth-partial-", dir=out))
+    try:
+        truth = _synthesize_into(stage, out, effect, amplitude, A, seed, loads, ramps, perturb,
+                                 n_circles, dt, save_dt, base, coeffs, factors, model_changes,
+                                 sensor_changes, sensor, verbose)
+        # the manifest, then truth.json last: a reader that checks for truth.json (the grid)
+        # sees a complete set
+        names = sorted(p.name for p in stage.iterdir())
+        for name in sorted(names, key=lambda n: (n == "manifest.toml", n == "truth.json")):
+            os.replace(stage / name, out / name)
+    finally:
+        shutil.rmtree(stage, ignore_errors=True)
+    return truth
+
+
+def _synthesize_into(out, final, effect, amplitude, A, seed, loads, ramps, perturb, n_circles,
+                     dt, save_dt, base, coeffs, factors, model_changes, sensor_changes, sensor,
+                     verbose) -> dict:
+    """The simulations and writes of :func:`synthesize`, into ``out`` (its staging directory;
+    ``final`` is only named in messages)."""
+    from szdyn.defaults import default_parameters
+    from szdyn.sensors import apply_sensor, motor_torque, write_recording
+    from szdyn.simulate import simulate
+
     held = set(_heldout(loads, ramps, seed))
     compliant = base["drive_mode"] == 2
     _say(verbose, f"effect {effect} (amplitude {A:g}), seed {seed}, N_c {n_circles}, "
-                  f"{len(loads)} loads x {len(ramps)} ramps, rk4 dt {dt:g} s -> {out}")
+                  f"{len(loads)} loads x {len(ramps)} ramps, rk4 dt {dt:g} s -> {final}")
     recs = []
     n_tot = len(loads) * len(ramps)
     wall0 = time.perf_counter()
@@ -469,7 +502,8 @@ def synthesize(out_dir, effect: str = "none", amplitude=None, seed: int = 0,
                                x0=params.initial_state(q_w0))
             except SimulationError as exc:
                 raise SimulationError(f"truth of {fname} failed: {exc} (try a smaller dt than "
-                                      f"{dt:g} s)", t=exc.t, variable=exc.variable) from exc
+                                      f"{dt:g} s, or check the load {load:g} kg); nothing was "
+                                      f"written to {final}", t=exc.t, variable=exc.variable) from exc
             o = run.outputs
             x = run.trajectory.x
             n = n_circles + 2
@@ -482,8 +516,9 @@ def synthesize(out_dir, effect: str = "none", amplitude=None, seed: int = 0,
                     f"N m s/rad); check drive_mode 2 in the model", t=None, variable="u_w")
             if not np.abs(o["u_b"]).max() <= 10 * w_max + 10:
                 raise SimulationError(f"truth of {fname} is unphysical: band speed reaches "
-                                      f"{np.abs(o['u_b']).max():.3g} rad/s (try a smaller dt)",
-                                      t=None, variable="u_b")
+                                      f"{np.abs(o['u_b']).max():.3g} rad/s (try a smaller dt, or "
+                                      f"check the load {load:g} kg); nothing was written to "
+                                      f"{final}", t=None, variable="u_b")
             # motor-side encoder: with the compliant drive, the prescribed motor angle
             q_enc = drive.evaluate(o["t"], angle0=float(x[0, 0]))[0] if compliant else o["q_w"]
             torque = motor_torque(run)
@@ -544,7 +579,7 @@ def synthesize(out_dir, effect: str = "none", amplitude=None, seed: int = 0,
         "recordings": recs,
     }
     write_json(out / "truth.json", truth)
-    _say(verbose, f"wrote {len(recs)} recordings, manifest.toml, truth.json in "
+    _say(verbose, f"wrote {len(recs)} recordings, manifest.toml, truth.json to {final} in "
                   f"{time.perf_counter() - wall0:.1f} s")
     return truth
 
@@ -586,8 +621,19 @@ def _build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--current", type=float, metavar="KT", help="also log motor current with torque constant KT (N m/A)")
     ap.add_argument("--quick", action="store_true", help="N_c 16 and two 0.5 s ramps (for tests)")
     ap.add_argument("--list-effects", action="store_true", help="print the effect library and exit")
+    ap.add_argument("--overwrite", action="store_true",
+                    help="replace recordings, manifest.toml and truth.json already in --out "
+                         "(default: refuse to touch them)")
     ap.add_argument("--quiet", action="store_true", help="no progress on stderr")
     return ap
+
+
+def _existing_outputs(out: Path) -> list:
+    """Files in ``out`` that a synth run writes or that belong to another set of recordings."""
+    if not out.is_dir():
+        return []
+    return sorted(p.name for p in out.iterdir()
+                  if p.is_file() and (p.name in ("manifest.toml", "truth.json") or p.suffix == ".csv"))
 
 
 def synth_command(argv) -> int:
@@ -610,6 +656,19 @@ def synth_command(argv) -> int:
         raise SynthError(f"synth: --dt must be > 0, got {args.dt}")
     if args.current is not None and not (math.isfinite(args.current) and args.current > 0):
         raise SynthError(f"synth: --current must be > 0 (N m/A), got {args.current}")
+    from szdyn.sensors import SensorModel
+
+    period = SensorModel().sample_period
+    if args.dt > period / 4:
+        raise SynthError(f"synth: --dt must be <= {period / 4:g} s (a quarter of the logger's "
+                         f"sample period {period:g} s), got {args.dt:g}")
+    if args.out.exists() and not args.out.is_dir():
+        raise SynthError(f"synth: --out {args.out} is a file, expected a directory")
+    clash = _existing_outputs(args.out)
+    if clash and not args.overwrite:
+        more = f" and {len(clash) - 4} more" if len(clash) > 4 else ""
+        raise SynthError(f"synth: --out {args.out} already holds {', '.join(clash[:4])}{more}; "
+                         "choose a new or empty directory, or pass --overwrite to replace them")
     kw = {}
     if args.quick:
         kw.update(ramps=QUICK_RAMPS, n_circles=QUICK_N_CIRCLES)

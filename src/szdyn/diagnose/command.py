@@ -7,7 +7,7 @@ import time
 from dataclasses import replace
 from pathlib import Path
 
-from ..errors import UserInputError
+from ..errors import UserInputError, interrupted
 
 __all__ = ["diagnose_command"]
 
@@ -127,8 +127,11 @@ def diagnose_command(argv) -> int:
     if args.workers is not None and args.workers < 1:
         raise UserInputError(f"diagnose: --workers must be >= 1, got {args.workers}")
     cands = None
-    if args.candidates:
+    if args.candidates is not None:
         cands = [c.strip() for c in args.candidates.split(",") if c.strip()]
+        if not cands:
+            raise UserInputError(f"diagnose: --candidates {args.candidates!r} names no candidate; "
+                                 f"known: {', '.join(CANDIDATES)} (leave it out for all)")
         bad = [c for c in cands if c not in CANDIDATES]
         if bad:
             raise UserInputError(f"diagnose: unknown candidate(s) {bad}; known: {', '.join(CANDIDATES)}")
@@ -185,12 +188,14 @@ def diagnose_command(argv) -> int:
                   workers=args.workers, log=log, progress=progress)
     try:
         d.fit(recs)
-    except KeyboardInterrupt:
+    except (KeyboardInterrupt, SystemError) as exc:
+        if not interrupted(exc):
+            raise
         if checkpoint is not None and checkpoint.directory.is_dir():
             upto = "made so far" if checkpoint.error_ is None else "made up to the failure said above"
             print(f"diagnose interrupted: the model runs {upto} are saved in {checkpoint.directory}; "
                   "re-run the same command to resume", file=sys.stderr, flush=True)
-        raise
+        raise KeyboardInterrupt from None
     js = write_report(d, args.out)
     if checkpoint is not None and not args.keep_runs:
         checkpoint.clear()

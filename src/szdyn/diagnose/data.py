@@ -24,6 +24,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..drive import Sampled
+from ..errors import UserInputError
 from ..params import ParameterSet
 from ..recordings import Recording, smoothed_current, speeds
 
@@ -97,7 +98,20 @@ def feature_grid(t0: float, t1: float, window_s: float = WINDOW_S, dt: float = F
 def prepare_one(rec: Recording, params: ParameterSet, role: str, *, window_s: float = WINDOW_S,
                 feature_dt: float = FEATURE_DT, torque_constant: float | None = None) -> Prepared:
     """Prepare one recording (see :class:`Prepared`); ``torque_constant`` (N m/A) turns its
-    ``current`` column, if any, into the measured motor torque ``tau``."""
+    ``current`` column, if any, into the measured motor torque ``tau``.
+
+    Raises
+    ------
+    UserInputError
+        If the recording is sampled too coarsely for the speed window (fewer than 4 samples in
+        ``window_s``, a time column in ms read as s, for instance).
+    """
+    med = rec.sampling()["median_dt"]
+    if med > window_s / 4 * (1 + 1e-9):   # 4 per window exactly passes, rounding aside
+        raise UserInputError(
+            f"recording '{rec.name}' is sampled every {med:.3g} s (median): the diagnosis compares "
+            f"speeds smoothed over {window_s:g} s and needs a sample every {window_s / 4:g} s or "
+            "less. Is the 't' column in seconds?")
     t, ww, wb = speeds(rec, window_s)
     drive = Sampled(t=t, omega=ww)
     t0, t1 = float(t[0]), float(t[-1])
