@@ -138,3 +138,20 @@ def test_ctrl_c_inside_a_compiled_function_counts_as_an_interrupt():
         assert interrupted(exc)
     assert interrupted(KeyboardInterrupt())
     assert not interrupted(SystemError("a real one")) and not interrupted(ValueError())
+
+
+def test_main_reports_ctrl_c_in_compiled_code_as_an_interrupt(monkeypatch, capsys):
+    import szdyn.run as run
+
+    def ctrl_c_in_numba(argv):
+        try:
+            raise KeyboardInterrupt
+        except KeyboardInterrupt as ki:
+            raise SystemError("CPUDispatcher(...) returned a result with an exception set") from ki
+
+    monkeypatch.setitem(run.COMMANDS, "simulate", ctrl_c_in_numba)
+    assert main([]) == 130
+    assert capsys.readouterr().err == "szdyn: interrupted\n"
+    monkeypatch.setitem(run.COMMANDS, "simulate", lambda argv: (_ for _ in ()).throw(SystemError("bug")))
+    with pytest.raises(SystemError, match="bug"):
+        main([])

@@ -1263,7 +1263,8 @@ def test_torque_sensor_noise_is_the_noise_of_the_smoothed_current():
 
 
 def test_a_recording_too_coarse_for_the_speed_window_is_refused():
-    """A time column in ms read as s samples every 2 s: no speed can be estimated over 0.1 s."""
+    """A time column in ms read as s samples every 2 s: no speed can be estimated over 0.1 s. A
+    10 Hz log (one sample a window) still passes, smoothed over a few samples."""
     from szdyn.diagnose.data import prepare_one
     from szdyn.defaults import default_parameters
     from szdyn.recordings import Recording
@@ -1272,8 +1273,11 @@ def test_a_recording_too_coarse_for_the_speed_window_is_refused():
     rec = Recording(name="ms.csv", t=t, theta_w=3e-3 * t, theta_b=3e-3 * t)
     with pytest.raises(UserInputError, match=r"'ms.csv' is sampled every 2 s .* in seconds\?"):
         prepare_one(rec, default_parameters(), "fit")
-    ok = Recording(name="ok.csv", t=t / 80, theta_w=0.24 * t, theta_b=0.24 * t)   # 40 Hz: 4 per window
+    ok = Recording(name="ok.csv", t=t / 20, theta_w=0.06 * t, theta_b=0.06 * t)
     assert prepare_one(ok, default_parameters(), "fit").y.size > 0
+    coarse = Recording(name="c.csv", t=t / 10, theta_w=0.03 * t, theta_b=0.03 * t)   # 5 Hz
+    with pytest.raises(UserInputError, match=r"every 0.2 s .*or less\.$"):
+        prepare_one(coarse, default_parameters(), "fit")
 
 
 def test_candidates_that_name_none_are_refused(tmp_path, capsys):

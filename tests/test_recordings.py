@@ -64,6 +64,8 @@ BROKEN = [
     # a mistyped time (1 ms sampling, then 1000 s): the model would be run over the gap
     ("t,theta_w,theta_b\n0,0,0\n0.001,0,0\n0.002,0,0\n1000,0,0\n", 5, "t",
      "time jumps by 999.998 s (from 0.002 s on line 4 to 1000 s)"),
+    # 10 s sampling, then 10001 s: over GAP_MIN_S, and 1000 median intervals exactly is not over
+    ("t,theta_w,theta_b\n0,0,0\n10,0,0\n20,0,0\n10020.5,0,0\n", 5, "t", "1000 times the median"),
     # a corrupted angle: 1e300 rad in 1 ms
     ("t,theta_w,theta_b\n0,0,0\n0.001,0,0\n0.002,0,1e300\n", 4, "theta_b", "angle jumps by 1e+300 rad"),
     ("t,theta_w,theta_b,omega_ref\n0,0,0,0\n0.001,0,0,3e7\n", 3, "omega_ref", "speed set-point 3e+07"),
@@ -71,13 +73,17 @@ BROKEN = [
 
 
 def test_gaps_and_speeds_a_logger_writes_are_accepted(tmp_path):
-    """The plausibility limits leave real logs alone: dropped rows (a 0.9 s hole at 1 kHz, 900
-    intervals, is under both limits), and one encoder count per microsecond-scale step."""
-    t = np.concatenate([np.arange(0, 1, 1e-3), np.arange(1.9, 2.5, 1e-3)])
+    """The plausibility limits leave real logs alone: a 5 s standstill of a 1 kHz logger that
+    writes only on change (5000 intervals, but under GAP_MIN_S), 10 s sampling with a 9.9 ks gap
+    (under 1000 intervals), and a fast motor encoder (800 rad/s) with two rows 50 us apart."""
+    t = np.concatenate([np.arange(0, 1, 1e-3), np.arange(6, 6.5, 1e-3)])
     text = "t,theta_w,theta_b\n" + "".join(f"{v:.6f},{3 * v:.6f},{2.9 * v:.6f}\n" for v in t)
     assert len(read_recording(_write(tmp_path, text))) == t.size
-    text = "t,theta_w,theta_b\n0,0,0\n0.000001,0.0015,0\n0.002,0.003,0\n"
-    assert len(read_recording(_write(tmp_path, text))) == 3
+    text = "t,theta_w,theta_b\n0,0,0\n10,0,0\n20,0,0\n9900,0,0\n"
+    assert len(read_recording(_write(tmp_path, text))) == 4
+    t = np.sort(np.concatenate([np.arange(0, 0.1, 1e-3), [0.05005]]))
+    text = "t,theta_w,theta_b\n" + "".join(f"{v:.6f},{800 * v:.6f},0\n" for v in t)
+    assert len(read_recording(_write(tmp_path, text))) == t.size
 
 
 @pytest.mark.parametrize("text,line,column,msg", BROKEN)
@@ -213,12 +219,12 @@ MANIFEST_ERRORS = [
     ('[[recording]]\nfile = "."\n', "is a directory, expected a CSV file"),
     ('[split]\nheldout = []\n[[recording]]\nfile = "ramp1.csv"\n', "holds out no recording"),
     ('[split]\nheldout = 0\n[[recording]]\nfile = "ramp1.csv"\n', "holds out no recording"),
+    ('[model]\nm_b = 2.0\n[[recording]]\nfile = "ramp1.csv"\nload_kg = 1.0\n',
+     "[model]: 'm_b' is the load, which 'load_kg' sets in every [[recording]]"),
     # values checked when read, naming the table (not at the recording's turn in a diagnosis)
     ('[model]\nmu_k = -0.3\n[[recording]]\nfile = "ramp1.csv"\n', "[model]: parameter 'mu_k' must be >= 0"),
     ('[model]\nn_rollers = 2.5\n[[recording]]\nfile = "ramp1.csv"\n', "[model]: parameter 'n_rollers'"),
     ('[model]\nmu_s = 0.1\nmu_k = 0.2\n[[recording]]\nfile = "ramp1.csv"\n', "[model]: parameter 'mu_k' must be <= mu_s"),
-    ('[model]\nm_b = 2.0\n[[recording]]\nfile = "ramp1.csv"\nload_kg = 1.0\n',
-     "[model]: 'm_b' is the load, which 'load_kg' sets per [[recording]]"),
     ('[model]\nmu_k = \n', "invalid TOML"),
     ('', "no recordings"),
 ]
@@ -236,13 +242,28 @@ def test_manifest_errors(tmp_path, text, msg):
     assert isinstance(ei.value, UserInputError)
 
 
-def test_manifest_with_a_byte_order_mark_and_m_b_without_loads(tmp_path):
+def test_manifest_with_a_byte_order_mark_and_m_b_for_the_recordings_without_a_load(tmp_path):
     _write(tmp_path, GOOD)
+    _write(tmp_path, GOOD, "ramp2.csv")
     m = tmp_path / "exp.toml"
-    m.write_bytes(b"\xef\xbb\xbf" + b'[model]\nm_b = 2.0\n[[recording]]\nfile = "ramp1.csv"\n')
+    m.write_bytes(b"\xef\xbb\xbf" + b'[model]\nm_b = 2.0\n[[recording]]\nfile = "ramp1.csv"\n'
+                  b'[[recording]]\nfile = "ramp2.csv"\nload_kg = 1.0\n')
     man = read_manifest(m)
     assert man.model == {"m_b": 2.0}
-    assert man.parameters(man.entries[0])["m_b"] == 2.0
+    assert [man.parameters(e)["m_b"] for e in man.entries] == [2.0, 1.0]
+
+
+@pytest.mark.parametrize("split", ["[split]\n", "[split]\nseed = 3\n"])
+def test_a_split_table_without_heldout_leaves_the_choice_to_szdyn(tmp_path, split):
+    _write(tmp_path, GOOD)
+    _write(tmp_path, GOOD, "ramp2.csv")
+    m = tmp_path / "exp.toml"
+    m.write_text(split + '[[recording]]\nfile = "ramp1.csv"\n[[recording]]\nfile = "ramp2.csv"\n')
+    assert read_manifest(m).heldout == ()
+    # a fraction of few recordings holds out at least one
+    m.write_text('[split]\nheldout = 0.25\n[[recording]]\nfile = "ramp1.csv"\n'
+                 '[[recording]]\nfile = "ramp2.csv"\n')
+    assert len(read_manifest(m).heldout) == 1
 
 
 # --------------------------------------------------------------------------- features

@@ -12,7 +12,7 @@ A manifest is a TOML file (read with :mod:`tomllib` only)::
 
     [split]                 # optional: recordings held out of calibration
     heldout = ["ramp3.csv"] # file names as written in [[recording]], or a fraction:
-    # heldout = 0.25        #   round(0.25 * n) recordings, chosen with numpy seed `seed`
+    # heldout = 0.25        #   round(0.25 * n) recordings (at least one), numpy seed `seed`
     # seed = 0
 
     [[recording]]
@@ -23,7 +23,8 @@ A manifest is a TOML file (read with :mod:`tomllib` only)::
     # torque_constant = 0.05  # overrides [motor] for this recording (N m/A)
 
 Known keys of a ``[[recording]]``: ``file`` (required; two names of one file are refused),
-``load_kg`` (number > 0, sets the model's ``m_b``, so ``[model] m_b`` is refused beside it),
+``load_kg`` (number > 0, sets the model's ``m_b``; ``[model] m_b`` is refused when every
+recording has one),
 ``n_circles`` (positive integer), ``note`` (text), ``torque_constant`` (number > 0, N m/A; with
 the recording's ``current`` column it gives the measured motor torque, which the diagnosis
 compares with the model's). Unknown keys anywhere are errors with a did-you-mean suggestion;
@@ -317,11 +318,11 @@ def read_manifest(path, *, check_files: bool = True) -> Manifest:
                 raise ManifestError(f"{nm}, [model]: parameter '{key}' must be a finite number, "
                                     f"got {v!r}")
             model[key] = float(v)
-        loaded = [e.name for e in entries if "load_kg" in e.conditions]
-        if "m_b" in model and loaded:
-            raise ManifestError(f"{nm}, [model]: 'm_b' is the load, which 'load_kg' sets per "
-                                f"[[recording]] (given in {len(loaded)} of them); set load_kg "
-                                "there instead")
+        if "m_b" in model and all("load_kg" in e.conditions for e in entries):
+            # [model] m_b still sets the load of recordings without load_kg; beside a load_kg
+            # in every one it would set nothing, silently
+            raise ManifestError(f"{nm}, [model]: 'm_b' is the load, which 'load_kg' sets in every "
+                                "[[recording]]; remove it, or set load_kg there")
     # the overrides, then each recording's conditions with them, checked now: a bad value found
     # later, at the recording's turn in a diagnosis, would name neither the file nor the table
     from szdyn.defaults import default_parameters
@@ -356,13 +357,14 @@ def read_manifest(path, *, check_files: bool = True) -> Manifest:
         elif _is_real(h):
             if not 0 <= h < 1:
                 raise ManifestError(f"{nm}, [split]: 'heldout' fraction must be in [0, 1), got {h!r}")
-            k = int(round(h * len(names)))
+            # a fraction of a few recordings holds out at least one: 0.25 of 2 is one, not none
+            k = max(1, int(round(h * len(names)))) if h > 0 else 0
             pick = np.random.default_rng(seed).choice(len(names), size=k, replace=False)
             heldout = tuple(names[j] for j in sorted(pick))
         else:
             raise ManifestError(f"{nm}, [split]: 'heldout' must be a list of file names or a "
                                 f"fraction, got {h!r}")
-        if not heldout:
+        if "heldout" in tbl and not heldout:
             raise ManifestError(f"{nm}, [split]: 'heldout' = {h!r} holds out no recording; "
                                 "calibration is judged on held-out recordings: name at least one, "
                                 "or remove [split] to let szdyn choose")

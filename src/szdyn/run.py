@@ -12,6 +12,7 @@ import argparse
 import difflib
 import math
 import sys
+import textwrap
 from pathlib import Path
 
 from .errors import ParameterError, SimulationError, UserInputError, interrupted
@@ -66,9 +67,11 @@ def build_parser() -> argparse.ArgumentParser:
 
     ap = argparse.ArgumentParser(
         prog="python -m szdyn.run",
-        description="Simulate the Spiral Zipper (impact-friction model of Lee 2021) and its friction "
-                    "counter-models. Writes a CSV per run, a PNG like the thesis's Fig. 10, params.json and "
-                    "thesis-fig10.json (the thesis's findings as criteria, measured, with pass/fail).",
+        # filled here: the raw formatter, which keeps the commands' list in columns, does not wrap
+        description=textwrap.fill(
+            "Simulate the Spiral Zipper (impact-friction model of Lee 2021) and its friction "
+            "counter-models. Writes a CSV per run, a PNG like the thesis's Fig. 10, params.json and "
+            "thesis-fig10.json (the thesis's findings as criteria, measured, with pass/fail).", 79),
         epilog="commands (python -m szdyn.run COMMAND --help for each):\n"
                + "\n".join(f"  {name:9s} {text}" for name, text in COMMAND_HELP.items()),
         formatter_class=argparse.RawDescriptionHelpFormatter,

@@ -60,7 +60,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import ParameterError, SimulationError, UserInputError
+from .errors import ParameterError, SimulationError, UserInputError, interrupted
 from .io import atomic_write_bytes, atomic_write_text, write_json
 from .metrics import Metric, evaluate_metrics, metric_unit
 from .sweep_spec import SweepSpec, build_drive, load_spec, spec_diff
@@ -112,6 +112,8 @@ def run_case(task: dict) -> dict:
                    wall_time_s=time.perf_counter() - t0)
         return rec
     except Exception as exc:  # noqa: BLE001 - recorded, retried on a re-run
+        if interrupted(exc):   # Ctrl-C inside compiled code stops the sweep, as Ctrl-C does
+            raise
         rec.update(status="error", error=f"{type(exc).__name__}: {_one_line(exc)}",
                    wall_time_s=time.perf_counter() - t0)
         return rec

@@ -359,8 +359,8 @@ def synthesize(out_dir, effect: str = "none", amplitude=None, seed: int = 0,
     ----------
     out_dir : str or Path
         Created if missing. The files are written into a staging directory inside it and
-        moved in together at the end, replacing files of the same names: a run that fails
-        leaves ``out_dir`` as it was.
+        moved in at the end (recordings, then ``manifest.toml``, then ``truth.json``),
+        replacing files of the same names: a run that fails while simulating writes none.
     effect : str
         An id of :data:`EFFECTS` or ``"none"``.
     amplitude : float, optional
@@ -455,8 +455,8 @@ def synthesize(out_dir, effect: str = "none", amplitude=None, seed: int = 0,
         raise SynthError(f"output directory {out} is a file")
     out.mkdir(parents=True, exist_ok=True)
     # everything is written into a staging directory and moved in at the end: a run that fails
-    # half-way (an unphysical truth, Ctrl-C) leaves the directory as it was, never a mix of old
-    # and new recordings
+    # while simulating (an unphysical truth, Ctrl-C) writes none of its files, so old and new
+    # recordings are not mixed
     stage = Path(tempfile.mkdtemp(prefix=".synth-partial-", dir=out))
     try:
         truth = _synthesize_into(stage, out, effect, amplitude, A, seed, loads, ramps, perturb,
@@ -465,7 +465,7 @@ def synthesize(out_dir, effect: str = "none", amplitude=None, seed: int = 0,
         # the manifest, then truth.json last: a reader that checks for truth.json (the grid)
         # sees a complete set
         names = sorted(p.name for p in stage.iterdir())
-        for name in sorted(names, key=lambda n: (n == "manifest.toml", n == "truth.json")):
+        for name in sorted(names, key=lambda n: {"manifest.toml": 1, "truth.json": 2}.get(n, 0)):
             os.replace(stage / name, out / name)
     finally:
         shutil.rmtree(stage, ignore_errors=True)
@@ -622,8 +622,9 @@ def _build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--quick", action="store_true", help="N_c 16 and two 0.5 s ramps (for tests)")
     ap.add_argument("--list-effects", action="store_true", help="print the effect library and exit")
     ap.add_argument("--overwrite", action="store_true",
-                    help="replace recordings, manifest.toml and truth.json already in --out "
-                         "(default: refuse to touch them)")
+                    help="replace the files of the same names already in --out; other files "
+                         "there are left (default: refuse when --out holds a CSV, manifest.toml "
+                         "or truth.json)")
     ap.add_argument("--quiet", action="store_true", help="no progress on stderr")
     return ap
 

@@ -103,15 +103,18 @@ def prepare_one(rec: Recording, params: ParameterSet, role: str, *, window_s: fl
     Raises
     ------
     UserInputError
-        If the recording is sampled too coarsely for the speed window (fewer than 4 samples in
-        ``window_s``, a time column in ms read as s, for instance).
+        If the recording is sampled too coarsely for the speed window (less than one sample in
+        ``window_s``: a time column in ms read as s, for instance).
     """
     med = rec.sampling()["median_dt"]
-    if med > window_s / 4 * (1 + 1e-9):   # 4 per window exactly passes, rounding aside
+    if med > window_s * (1 + 1e-9):   # one per window exactly passes, rounding aside
+        # coarser logs (a 30 fps camera) are smoothed over a few samples instead; sparser ones
+        # cannot show the speeds the diagnosis compares
+        units = " Is the 't' column in seconds?" if med >= 0.5 else ""
         raise UserInputError(
             f"recording '{rec.name}' is sampled every {med:.3g} s (median): the diagnosis compares "
-            f"speeds smoothed over {window_s:g} s and needs a sample every {window_s / 4:g} s or "
-            "less. Is the 't' column in seconds?")
+            f"speeds smoothed over {window_s:g} s and needs a sample every {window_s:g} s or "
+            f"less.{units}")
     t, ww, wb = speeds(rec, window_s)
     drive = Sampled(t=t, omega=ww)
     t0, t1 = float(t[0]), float(t[-1])

@@ -51,6 +51,7 @@ from contextlib import contextmanager
 
 import numpy as np
 
+from ..errors import interrupted
 from .amplitude import amplitude_search
 from .candidates import CANDIDATES, Candidate
 from .detect import detectable_amplitude
@@ -882,6 +883,8 @@ class Diagnosis:
         try:
             self._pass(sub, weighted=self.weighting == "always")
         except Exception as exc:   # noqa: BLE001 -- a fallback must not lose the answer it falls back from
+            if interrupted(exc):   # Ctrl-C inside compiled code: stop, do not answer
+                raise
             self.__dict__.update(state)
             why = f"{type(exc).__name__}: {exc}"
             self.log(f"the look at the {heavy:g} kg recordings alone failed ({why}): the answer stays unexplained")
