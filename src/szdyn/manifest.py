@@ -24,16 +24,16 @@ A manifest is a TOML file (read with :mod:`tomllib` only)::
 
 Known keys of a ``[[recording]]``: ``file`` (required; two names of one file are refused),
 ``load_kg`` (number > 0, sets the model's ``m_b``; ``[model] m_b`` is refused when every
-recording has one),
-``n_circles`` (positive integer), ``note`` (text), ``torque_constant`` (number > 0, N m/A; with
-the recording's ``current`` column it gives the measured motor torque, which the diagnosis
-compares with the model's). Unknown keys anywhere are errors with a did-you-mean suggestion;
-``[model]`` names are checked against ``szdyn_generated.spiral_zipper.PARAM_NAMES`` and values
-must be real numbers (not booleans, not strings), and the overrides with each recording's
-conditions must make a valid parameter set (checked when read, so the message names the table).
-``[split] heldout`` must hold out at least one recording and not all. A UTF-8 byte-order mark
-is accepted. Errors are :class:`ManifestError` (a :class:`~szdyn.errors.UserInputError`) naming
-the manifest file and the table/key, e.g.
+recording has one), ``n_circles`` (positive integer), ``note`` (text), ``torque_constant``
+(number > 0, N m/A; with the recording's ``current`` column it gives the measured motor torque,
+which the diagnosis compares with the model's). Unknown keys anywhere are errors with a
+did-you-mean suggestion; ``[model]`` names are checked against
+``szdyn_generated.spiral_zipper.PARAM_NAMES`` and values must be real numbers (not booleans,
+not strings), and the overrides with each recording's conditions must make a valid parameter
+set (checked when read, so the message names the table). ``[split] heldout`` must hold out at
+least one recording and not all. A UTF-8 byte-order mark is accepted. Errors are
+:class:`ManifestError` (a :class:`~szdyn.errors.UserInputError`) naming the manifest file and
+the table/key, e.g.
 ``experiments.toml, [[recording]] 2 ('ramp2.csv'): unknown key 'load_k' (did you mean
 'load_kg'?)``.
 """
