@@ -75,14 +75,17 @@ BROKEN = [
 def test_gaps_and_speeds_a_logger_writes_are_accepted(tmp_path):
     """The plausibility limits leave real logs alone: a 5 s standstill of a 1 kHz logger that
     writes only on change (5000 intervals, but under GAP_MIN_S), 10 s sampling with a 9.9 ks gap
-    (under 1000 intervals), and a fast motor encoder (800 rad/s) with two rows 50 us apart."""
+    (under 1000 intervals), and a motor encoder at 800 rad/s whose row 50 is stamped 1 us after
+    row 49 with a whole interval's motion (0.8 rad in 1 us: 8e5 rad/s over the step alone)."""
     t = np.concatenate([np.arange(0, 1, 1e-3), np.arange(6, 6.5, 1e-3)])
     text = "t,theta_w,theta_b\n" + "".join(f"{v:.6f},{3 * v:.6f},{2.9 * v:.6f}\n" for v in t)
     assert len(read_recording(_write(tmp_path, text))) == t.size
     text = "t,theta_w,theta_b\n0,0,0\n10,0,0\n20,0,0\n9900,0,0\n"
     assert len(read_recording(_write(tmp_path, text))) == 4
-    t = np.sort(np.concatenate([np.arange(0, 0.1, 1e-3), [0.05005]]))
-    text = "t,theta_w,theta_b\n" + "".join(f"{v:.6f},{800 * v:.6f},0\n" for v in t)
+    t = np.arange(0, 0.1, 1e-3)
+    stamp = t.copy()
+    stamp[50] = t[49] + 1e-6
+    text = "t,theta_w,theta_b\n" + "".join(f"{s:.6f},{800 * v:.6f},0\n" for s, v in zip(stamp, t))
     assert len(read_recording(_write(tmp_path, text))) == t.size
 
 

@@ -9,7 +9,6 @@ recordings, locate the mismatch, name the missing effect, refit). ``COMMAND --he
 from __future__ import annotations
 
 import argparse
-import difflib
 import math
 import sys
 import textwrap
@@ -193,9 +192,10 @@ def main(argv=None) -> int:
         command = argv.pop(0)
     elif argv and not argv[0].startswith("-"):
         # simulate takes no positional argument: a first word is a mistyped command
-        close = difflib.get_close_matches(argv[0], list(COMMANDS), n=1)
-        hint = f" (did you mean '{close[0]}'?)" if close else ""
-        print(f"szdyn: error: unknown command '{argv[0]}'{hint}; commands: {', '.join(COMMANDS)}",
+        from .params import suggest
+
+        print(f"szdyn: error: unknown command '{argv[0]}'{suggest(argv[0], COMMANDS)}; commands: "
+              f"{', '.join(COMMANDS)}",
               file=sys.stderr)
         return 2
     try:

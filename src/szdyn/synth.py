@@ -464,8 +464,8 @@ def synthesize(out_dir, effect: str = "none", amplitude=None, seed: int = 0,
                                  sensor_changes, sensor, verbose)
         # the manifest, then truth.json last: a reader that checks for truth.json (the grid)
         # sees a complete set
-        names = sorted(p.name for p in stage.iterdir())
-        for name in sorted(names, key=lambda n: {"manifest.toml": 1, "truth.json": 2}.get(n, 0)):
+        last = {"manifest.toml": 1, "truth.json": 2}
+        for name in sorted((p.name for p in stage.iterdir()), key=lambda n: (last.get(n, 0), n)):
             os.replace(stage / name, out / name)
     finally:
         shutil.rmtree(stage, ignore_errors=True)
