@@ -429,13 +429,13 @@ def test_linear_step_is_the_gauss_newton_step_tried_with_model_runs():
     model, h = _LinearModel(), Hypothesis(START)
     first = fit_hypothesis(model, h, [0], max_jac=1)   # one Jacobian: not yet at TARGET
     # the step from the (exact) Jacobian lands on TARGET; of the tried fractions 1 is the best
-    x, rss = linear_step(model, h, first, [0])
-    assert rss < 1e-16 * first.rss_fit
+    x, rss, step = linear_step(model, h, first, [0])
+    assert rss < 1e-16 * first.rss_fit and step == "the full step"
     for k, v in _LinearModel.TARGET.items():
         assert h.values(x)[k] == pytest.approx(v, rel=1e-6), k
     # only half of it: a quarter of the residual energy (the residual is linear)
-    x, rss = linear_step(model, h, first, [0], fractions=(0.5,))
-    assert rss == pytest.approx(0.25 * first.rss_fit, rel=1e-6)
+    x, rss, step = linear_step(model, h, first, [0], fractions=(0.5,))
+    assert rss == pytest.approx(0.25 * first.rss_fit, rel=1e-6) and step == "0.5 x the full step"
 
 
 class _RippledDelayModel(_LinearModel):
@@ -472,8 +472,9 @@ def test_linear_step_also_tries_the_candidates_own_step_with_the_base_held():
     some_fit = fit_hypothesis(model, h, [0], x0=x0, max_jac=1)
     stalled = replace(some_fit, x=x0, J=J, rss_fit=float(f0 @ f0))
     base_part = float(np.sum(f0[:-15] ** 2))   # what the delay cannot fit
-    _, rss_full = linear_step(model, h, stalled, [0], own=False)
-    x, rss = linear_step(model, h, stalled, [0])
+    _, rss_full, _ = linear_step(model, h, stalled, [0], own=False)
+    x, rss, step = linear_step(model, h, stalled, [0])
+    assert step == "the candidate's own step"
     assert rss_full > stalled.rss_fit   # the full step alone: worse than where the fit stalled
     assert rss == pytest.approx(base_part, rel=1e-9) and rss < 0.5 * stalled.rss_fit
     assert h.values(x)["encoder_delay"] == pytest.approx(_RippledDelayModel.DELAY, rel=1e-9)
@@ -516,6 +517,12 @@ def test_a_stalled_refit_is_restarted_within_its_own_budget_and_keeps_its_start(
     assert res.extra["restart"] == "the uncalibrated coefficients (second start)"
     # each new fit is held to the refit's budget (1 Jacobian, plus the one at its end point)
     assert res.extra["njac"] <= stalled.extra["njac"] + 2 * res.extra["unstalled"]
+    # the report says which step each restart started from (the curved stand-in's base has no
+    # own step: the full one or a fraction of it)
+    from szdyn.diagnose.report import _status
+    steps = res.extra["unstall_steps"]
+    assert len(steps) == res.extra["unstalled"] and all(s.endswith("the full step") for s in steps)
+    assert f"restarted {res.extra['unstalled']}x from its linear step (a stall; {steps[0]}" in _status(res)
 
 
 class _WantsNegativeTraction(_CurvedModel):

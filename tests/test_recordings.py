@@ -89,6 +89,42 @@ def test_gaps_and_speeds_a_logger_writes_are_accepted(tmp_path):
     assert len(read_recording(_write(tmp_path, text))) == t.size
 
 
+def _ramp(band=lambda w: 0.9 * w, wheel=lambda w: w, ref=lambda v: v):
+    """A 2 s ramp to 3 rad/s and back as a logger writes it: wheel angle, band angle and
+    set-point (rad, rad/s), each passed through the given function (a unit mistake)."""
+    t = np.arange(0, 2, 2e-3)
+    v = 3.0 * np.minimum(t, 2 - t)
+    th = np.concatenate([[0.0], np.cumsum(0.5 * (v[1:] + v[:-1]) * np.diff(t))])
+    return "t,theta_w,theta_b,omega_ref\n" + "".join(
+        f"{a:.4f},{wheel(b):.6f},{band(b):.6f},{ref(c):.6f}\n" for a, b, c in zip(t, th, v))
+
+
+@pytest.mark.parametrize("mistake,column,msg", [
+    ({"band": lambda w: math.degrees(0.9 * w)}, "theta_b", "is theta_b in degrees?"),
+    # heavy slip: the band at half the wheel's speed, in degrees, travels 28.6x the wheel
+    ({"band": lambda w: math.degrees(0.5 * w)}, "theta_b", "28.6 times theta_w's travel"),
+    ({"band": math.degrees, "wheel": math.degrees}, "theta_w", "are the angles in degrees?"),
+    ({"ref": math.degrees}, "omega_ref", "is omega_ref in deg/s?"),
+])
+def test_angles_in_degrees_are_refused_naming_the_column(tmp_path, mistake, column, msg):
+    with pytest.raises(RecordingError) as ei:
+        read_recording(_write(tmp_path, _ramp(**mistake)))
+    assert ei.value.column == column and msg in str(ei.value), str(ei.value)
+    assert "Angles must be in rad and omega_ref in rad/s" in str(ei.value)
+
+
+def test_slip_stalls_and_small_moves_pass_the_units_check(tmp_path):
+    """The check leaves physics alone: a band at a tenth of the wheel (heavy slip), a wheel at a
+    tenth of its set-point (a stalled drive), a wheel in revolutions (6.3x, not 57x: the
+    diagnosis's fit shows that one), and degrees over a travel within the noise (0.3 rad)."""
+    for kw in ({"band": lambda w: 0.1 * w}, {"band": lambda w: 0.1 * w, "wheel": lambda w: 0.1 * w},
+               {"wheel": lambda w: w / (2 * math.pi), "band": lambda w: 0.9 * w / (2 * math.pi)}):
+        assert len(read_recording(_write(tmp_path, _ramp(**kw)))) == 1000
+    tiny = _ramp(band=lambda w: math.degrees(w) * 0.1 / 3, wheel=lambda w: w * 0.1 / 3,
+                 ref=lambda v: v * 0.1 / 3)
+    assert len(read_recording(_write(tmp_path, tiny))) == 1000
+
+
 @pytest.mark.parametrize("text,line,column,msg", BROKEN)
 def test_broken_file_names_file_line_and_column(tmp_path, text, line, column, msg):
     with pytest.raises(RecordingError) as ei:

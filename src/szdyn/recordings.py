@@ -38,7 +38,10 @@ hex), NaN or infinity, time going backwards, fewer than two data rows, and two t
 logger writes: a time step longer than both 10 s and 1000 median sample intervals (a mistyped
 time or a logger restart; :data:`GAP_FACTOR`, :data:`GAP_MIN_S`), and an angle step implying
 more than 10^4 rad/s over the step or the median interval, whichever is longer (a corrupted
-value or an encoder glitch; :data:`MAX_SPEED`).
+value or an encoder glitch; :data:`MAX_SPEED`). Also rejected: angles in degrees, told by travels
+that should agree and differ by about 180/pi (the band's and the wheel's, the wheel's and the one
+``omega_ref`` commands; :data:`DEGREE_RATIO`). Both angles in degrees without ``omega_ref`` cannot
+be told from radians.
 
 Duplicate timestamps (decision): a row that repeats the previous row *exactly* (same ``t``
 and same values in every used column) is a logger re-send; it is dropped and a note is kept
@@ -224,6 +227,13 @@ MAX_SPEED = 1e4
 #: seconds, both accepted
 GAP_FACTOR = 1000.0
 GAP_MIN_S = 10.0
+#: ratios of two travels that say "degrees where radians were meant" (180/pi = 57.3, with room
+#: for slip and tracking error): checked only between columns that must move together, and only
+#: when both travels exceed UNITS_MIN_TRAVEL (rad), so that encoder noise cannot trigger it
+DEGREE_RATIO = (20.0, 110.0)
+UNITS_MIN_TRAVEL = 0.5
+_TRAVEL = {"theta_w": "theta_w's travel", "theta_b": "theta_b's travel",
+           "omega_ref": "the travel omega_ref commands"}
 _DELIMITERS = {";": "semicolon", "\t": "tab", "|": "vertical bar"}
 
 
@@ -351,6 +361,7 @@ def _read(fh, path, conditions, name) -> Recording:
     data = np.array([v for _, v in rows], dtype=float)
     cols = {c: data[:, i] for i, c in enumerate(used)}
     _check_plausible(cols, [ln for ln, _ in rows], path)
+    _check_units(cols, path)
     extra = tuple(c for c in header if c not in used)
     if extra:
         notes.append("ignored column(s): " + ", ".join(extra))
@@ -392,6 +403,37 @@ def _check_plausible(cols: dict, lines: list, path) -> None:
             raise RecordingError(f"speed set-point {cols['omega_ref'][k]:.6g} rad/s is beyond "
                                  f"{MAX_SPEED:g} rad/s: a corrupted value, or not in rad/s?",
                                  path=path, line=lines[k], column="omega_ref")
+
+
+def _check_units(cols: dict, path) -> None:
+    """Refuse angles logged in degrees where the columns say rad (or a set-point in deg/s).
+
+    Two travels over the whole recording (max - min) must agree to within slip and tracking
+    error: the band's with the wheel's (the band encoder counts wheel-equivalent radians, and a
+    friction drive cannot make the band outrun the wheel: slip only makes it lag), and the
+    wheel's with the travel its set-point commands (the integral of ``omega_ref``). A ratio near
+    180/pi (:data:`DEGREE_RATIO`) is a unit mistake, not physics: the fit would run on speeds 57
+    times too large. Other mismatches (a stalled motor, a saturated drive) are left alone.
+    """
+    travel = {c: float(np.ptp(cols[c])) for c in ("theta_w", "theta_b")}
+    if "omega_ref" in cols:
+        w = cols["omega_ref"]
+        commanded = np.cumsum(0.5 * (w[1:] + w[:-1]) * np.diff(cols["t"]))
+        travel["omega_ref"] = float(np.ptp(np.append(commanded, 0.0)))
+    # (column, column it is compared with, why the two must agree, what to check)
+    pairs = [("theta_b", "theta_w", "the band cannot outrun the wheel that drives it", "is theta_b in degrees?"),
+             ("theta_w", "omega_ref", "the wheel follows its set-point", "are the angles in degrees?"),
+             ("omega_ref", "theta_w", "the wheel follows its set-point", "is omega_ref in deg/s?")]
+    lo, hi = DEGREE_RATIO
+    for col, other, why, ask in pairs:
+        if col not in travel or other not in travel or min(travel[col], travel[other]) < UNITS_MIN_TRAVEL:
+            continue
+        ratio = travel[col] / travel[other]
+        if lo <= ratio <= hi:
+            raise RecordingError(
+                f"{_TRAVEL[col]} ({travel[col]:.4g} rad) is {ratio:.1f} times {_TRAVEL[other]} "
+                f"({travel[other]:.4g} rad), but {why}: {ask} Angles must be in rad and "
+                "omega_ref in rad/s", path=path, column=col)
 
 
 # --------------------------------------------------------------------------- derived signals

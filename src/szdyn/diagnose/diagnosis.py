@@ -758,13 +758,14 @@ class Diagnosis:
         """
         max_jac = 2 * self.max_jac if max_jac is None else max_jac
         for k in range(self.unstall):
-            x, rss = linear_step(model, h, res, fit_idx)
+            x, rss, step = linear_step(model, h, res, fit_idx)
             if self.rule.indistinguishable(rss_selected=rss, rss_other=res.rss_fit, n_fit=res.n_fit):
                 break   # (also when the step fits worse)
-            self.log(f"  the {what} stalled: its linear step fits at {math.sqrt(rss / res.n_fit):.4g} rad/s "
-                     f"(ended at {res.rmse_fit:.4g}); fitting again from there")
+            self.log(f"  the {what} stalled: its linear step ({step}) fits at {math.sqrt(rss / res.n_fit):.4g} "
+                     f"rad/s (ended at {res.rmse_fit:.4g}); fitting again from there")
             nxt = fit_hypothesis(model, h, fit_idx, x0=x, max_jac=max_jac, tol=FIT_TOL)
             nxt.extra.update(njac=nxt.extra["njac"] + res.extra["njac"], unstalled=k + 1,
+                             unstall_steps=[*res.extra.get("unstall_steps", []), step],
                              continued=res.extra.get("continued", False),
                              start=res.extra.get("start"), restart=res.extra.get("restart"))
             self.log(f"  {what}: fit RMSE {nxt.rmse_fit:.4g} rad/s ({nxt.rmse_fit / self.floor_:.2f}x the floor)")

@@ -299,7 +299,7 @@ def gauss_newton_step(model: FeatureModel, hyp: Hypothesis, res: FitResult, whic
 
 
 def linear_step(model: FeatureModel, hyp: Hypothesis, res: FitResult, which,
-                fractions=(1.0, 0.5), own: bool = True) -> tuple[np.ndarray, float]:
+                fractions=(1.0, 0.5), own: bool = True) -> tuple[np.ndarray, float, str]:
     """The Gauss-Newton step from the end of a fit, tried with model runs (one parallel batch).
 
     A trust-region fit on the rippled (impact-bump) cost can report convergence (``xtol``)
@@ -333,16 +333,22 @@ def linear_step(model: FeatureModel, hyp: Hypothesis, res: FitResult, which,
         The best of the tried points (clipped into the bounds), in fit coordinates.
     rss : float
         Its residual sum of squares ((rad/s)^2).
+    label : str
+        Which step it is, for the report: ``"the full step"`` or ``"the candidate's own step"``,
+        with the fraction when it is not 1 (``"0.5 x the full step"``).
     """
     steps = [gauss_newton_step(model, hyp, res, which)]
+    names = ["the full step"]
     nb = hyp.n_base
     if own and res.J.shape[1] > nb:
         f0 = model.residuals([hyp.point(res.x)], which)[0]   # (cached: the fit evaluated it)
         d = np.zeros_like(res.x)
         d[nb:] = np.linalg.lstsq(res.J[:, nb:], f0, rcond=None)[0]
         steps.append(d)
+        names.append("the candidate's own step")
     xs = [hyp.inside(res.x + a * d) for d in steps for a in fractions]
+    labels = [nm if a == 1.0 else f"{a:g} x {nm}" for nm in names for a in fractions]
     R = model.residuals([hyp.point(x) for x in xs], which)
     rss = [float(r @ r) for r in R]
     k = int(np.argmin(rss))
-    return xs[k], rss[k]
+    return xs[k], rss[k], labels[k]

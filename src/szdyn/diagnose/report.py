@@ -95,19 +95,26 @@ def _clean(x):
 
 def _status(res) -> str:
     """How a nonlinear fit ended, for the reader (converged or stopped by its budget)."""
+    ex = res.extra
+    parts = []
+    if ex.get("start"):
+        parts.append(f"started from the {ex['start']}")
+    if ex.get("restart"):
+        parts.append(f"restarted from {ex['restart']}")
+    if ex.get("ablation_of"):
+        parts.append(f"refitted from {ex['ablation_of']}'s coefficients (ablation)")
+    if ex.get("continued"):
+        parts.append("continued once")
+    if ex.get("unstalled"):
+        # which step (the full one or the candidate's own) each restart started from
+        steps = f"; {', then '.join(ex['unstall_steps'])}" if ex.get("unstall_steps") else ""
+        parts.append(f"restarted {ex['unstalled']}x from its linear step (a stall{steps})")
+    if ex.get("phase_steps"):
+        parts.append(f"{ex['phase_steps']} phase-profiled step(s) (--phase-steps)")
+    if ex.get("settled_by"):
+        parts.append(f"no further starts ({ex['settled_by']} already explained the mismatch)")
     how = "stopped by its budget" if res.budget_hit else "converged"
-    more = (f", started from the {res.extra['start']}" if res.extra.get("start") else "") + \
-        (f", restarted from {res.extra['restart']}" if res.extra.get("restart") else "") + \
-        (f", refitted from {res.extra['ablation_of']}'s coefficients (ablation)"
-         if res.extra.get("ablation_of") else "") + \
-        (", continued once" if res.extra.get("continued") else "") + \
-        (f", restarted {res.extra['unstalled']}x from its linear step (a stall)"
-         if res.extra.get("unstalled") else "") + \
-        (f", {res.extra['phase_steps']} phase-profiled step(s) (--phase-steps)"
-         if res.extra.get("phase_steps") else "") + \
-        (f", no further starts ({res.extra['settled_by']} already explained the mismatch)"
-         if res.extra.get("settled_by") else "")
-    return f"{how} after {res.extra['njac']} Jacobians{more}"
+    return f"{how} after {ex['njac']} Jacobians" + "".join(", " + p for p in parts)
 
 
 def _nominated_md(d) -> str:
