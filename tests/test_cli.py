@@ -52,6 +52,15 @@ def test_counter_model_run(tmp_path):
     (["--set", "k_c=nan"], "k_c"),
     (["--set", "__import__('os')=1"], "unknown"),
     (["--params", "does-not-exist.json"], "does-not-exist.json"),
+    # checked before any run starts (these were tracebacks, silent garbage or minutes of waiting)
+    (["--method", "rk4", "--dt", "3e-4"], "--save-dt 0.001 must be a multiple of --dt 0.0003"),
+    (["--save-dt", "1"], "at least 10 are needed"),
+    (["--n-circles", "100000000"], "GiB of output"),
+    (["--omega-hold", "1e6"], "GiB of output"),
+    (["--set", "contact_model=2"], "--contact"),
+    (["--set", "k_c=1", "--set", "k_c=2"], "given twice"),
+    (["--set", "n_circles=8"], "disagree"),
+    (["--set", "geometry=1"], "--params file"),
 ])
 def test_bad_input_is_a_one_line_error(argv, expect, capsys, tmp_path):
     code = main(["--out", str(tmp_path)] + SMALL + argv)
@@ -61,7 +70,8 @@ def test_bad_input_is_a_one_line_error(argv, expect, capsys, tmp_path):
     assert "Traceback" not in err and len(err.splitlines()) == 1
 
 
-@pytest.mark.parametrize("argv", [["--dt", "0"], ["--method", "euler"], ["--n-circles", "-3"], ["--rtol", "nan"]])
+@pytest.mark.parametrize("argv", [["--dt", "0"], ["--method", "euler"], ["--n-circles", "-3"], ["--rtol", "nan"],
+                                  ["--rtol", "5"]])
 def test_bad_options_are_rejected_by_the_parser(argv, capsys):
     with pytest.raises(SystemExit) as exc:
         main(argv)
@@ -70,12 +80,52 @@ def test_bad_options_are_rejected_by_the_parser(argv, capsys):
     assert "error:" in err and "Traceback" not in err
 
 
-def test_bad_params_file_names_the_file(tmp_path, capsys):
+@pytest.mark.parametrize("content, expect", [
+    (b'{"values": {"m_c": "heavy"}}', "must be a real number"),
+    (b'{"values": {"m_c": true}}', "must be a real number, got True"),   # not read as 1 kg
+    (b'{"values": {"k_c": 1.0, "k_c": 2.0}}', "key 'k_c' appears twice"),
+    (b"\x89PNG\r\n\x1a\n\xff\xfe", "not UTF-8"),
+])
+def test_bad_params_file_names_the_file(tmp_path, capsys, content, expect):
     bad = tmp_path / "p.json"
-    bad.write_text('{"values": {"m_c": "heavy"}}')
+    bad.write_bytes(content)
     assert main(["--out", str(tmp_path), "--params", str(bad)] + SMALL) == 2
     err = capsys.readouterr().err
-    assert "p.json" in err and "Traceback" not in err
+    assert "p.json" in err and expect in err and "Traceback" not in err
+    assert main(["--out", str(tmp_path), "--params", str(tmp_path)] + SMALL) == 2
+    assert "is a directory" in capsys.readouterr().err
+
+
+def test_out_that_is_a_file_is_refused(tmp_path, capsys):
+    (tmp_path / "f").write_text("mine")
+    for out in (tmp_path / "f", tmp_path / "f" / "sub"):
+        assert main(["--out", str(out)] + SMALL) == 2
+        assert f"{tmp_path / 'f'} is a file" in capsys.readouterr().err
+    assert (tmp_path / "f").read_text() == "mine"
+
+
+def test_a_failed_run_leaves_the_earlier_results_as_they_were(tmp_path, monkeypatch, capsys):
+    """simulate writes into a staging directory and moves the set in only when every run is done:
+    a run that fails (or is interrupted) part-way neither loses nor mixes the earlier files."""
+    import szdyn.thesis as thesis
+
+    fast = ["--n-circles", "4", "--omega-hold", "1", "--t-hold", "0.6", "--contact", "coulomb", "--quiet",
+            "--workers", "1"]
+    assert main(["--out", str(tmp_path)] + fast) == 0
+    out = tmp_path / "thesis-fig10"
+    before = {p.relative_to(out): p.read_bytes() for p in out.rglob("*") if p.is_file()}
+
+    def failing(params, stage, **kw):   # writes part of its set, then fails
+        params.to_json(stage / "params.json")
+        (stage / "coulomb").mkdir()
+        (stage / "coulomb" / "ramp_0.1pi.csv").write_text("t\n0\n")
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(thesis, "run_fig10", failing)
+    assert main(["--out", str(tmp_path), "--set", "k_c=0.06"] + fast) == 130
+    after = {p.relative_to(out): p.read_bytes() for p in out.rglob("*") if p.is_file()}
+    assert after == before
+    assert not [p for p in out.iterdir() if p.name.startswith(".partial-")]
 
 
 def test_help_and_no_traceback_in_a_real_process(tmp_path):
@@ -105,6 +155,33 @@ def test_regime_map_small(tmp_path):
     stamps = [f.stat().st_mtime_ns for f in case_files]
     assert run_regime_map(params, tmp_path, **kw)["cases"] == s["cases"]
     assert [f.stat().st_mtime_ns for f in case_files] == stamps  # resumed: no case recomputed
+
+
+def test_regime_map_with_an_invalid_case_is_still_written(tmp_path, capsys):
+    """A case out of the parameter bounds (rollers beyond the band) is 'failed' with empty speed
+    cells; it used to stop the map's CSV (non-finite values refused) after every run was made."""
+    import csv
+
+    from szdyn.defaults import default_parameters
+    from szdyn.regime import run_regime_map
+
+    params = default_parameters(n_circles=16)
+    beyond = 1e3 * (params["d"] + params["t_c"]) + 1.0   # R_w + t_r > R_bo: an invalid combination
+    kw = dict(second="b_c", interference_mm=[0.19, beyond], factors=(1.0,), workers=1, progress=False,
+              omega_hold=2.0, a=20.0, t_hold=0.3, hold_skip=0.1)
+    s = run_regime_map(params, tmp_path, **kw)
+    assert s["counts"]["failed"] == 1 and sum(s["counts"].values()) == 2
+    with open(tmp_path / "regime_map.csv", newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    bad = next(r for r in rows if r["regime"] == "failed")
+    assert bad["hold_wheel_rad_s"] == bad["hold_band_rad_s"] == bad["band_over_wheel"] == ""
+    assert bad["status"] != "ok" and (tmp_path / "regime_map.png").is_file()
+    # a second axis at 0 would make every factor the same case; bounds are said in the map's terms
+    assert main(["regime", "--set", "b_c=0", "--out", str(tmp_path / "z"), "--quiet"]) == 2
+    assert "which is 0 here" in capsys.readouterr().err
+    assert main(["regime", "--set", "R_w=5e-5", "--out", str(tmp_path / "w"), "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert "the regime map around R_w = 5e-05 m" in err and "Traceback" not in err
 
 
 def test_sweep_and_regime_commands_are_registered(capsys):

@@ -119,6 +119,12 @@ def test_tiny_sweep_end_to_end(tmp_path):
     ("[metrics]\ns = { kind = \"maen\", of = \"rel_speed\" }\n", ["[metrics.s]", "did you mean 'mean'"]),
     ("[metrics]\ns = { kind = \"mean\", of = \"rel_sped\" }\n", ["[metrics.s]", "did you mean 'rel_speed'"]),
     ("[metrics]\ns = { kind = \"mean\", off = \"rel_speed\" }\n", ["[metrics.s]", "did you mean 'of'"]),
+    # refused before the values are made (1e9 of them took 7.5 GB)
+    ("[axes]\nk_c = {start = 0.01, stop = 0.05, num = 1000000000}\n", ["[axes] 'k_c'", "more than the limit"]),
+    # refused before any case runs: each would give metrics from 2 samples
+    ("[axes]\n\"integrator.save_dt\" = [0.001, 0.1]\n",
+     ["case 1 (integrator.save_dt = 0.1)", "at least 10 are needed"]),
+    ("[axes]\nn_circles = [16, 100000000]\n", ["case 1 (n_circles = 100000000)", "GiB of output"]),
 ])
 def test_unknown_keys_and_bad_values_name_the_key_and_suggest(tmp_path, extra, expect):
     spec = write_spec(tmp_path, BASE + extra)
@@ -142,6 +148,9 @@ def test_unknown_keys_and_bad_values_name_the_key_and_suggest(tmp_path, extra, e
     ("rtol = 1e-5", "rtl = 1e-5", "[base.integrator] unknown key 'rtl' (did you mean 'rtol'?)"),
     ("n_circles = 16", "n_circle = 16", "[base] unknown key 'n_circle' (did you mean 'n_circles'?)"),
     ("t_end = 0.2", "t_end = \"1 s\"", "[base] key 't_end' must be a number"),
+    # every case would fail, and be retried, at the first step
+    ('method = "dopri5"', 'method = "rk4"\ndt = 3e-4',
+     "[base]: save_dt=0.001 must be a multiple of dt=0.0003 (within 1e-9 relative); see [base.integrator]"),
 ])
 def test_base_errors(tmp_path, old, new, expect):
     text = BASE + "[base.params]\nk_c = 0.05\n"

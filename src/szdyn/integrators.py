@@ -33,7 +33,8 @@ from szdyn_generated.spiral_zipper import rhs as _rhs
 
 from .errors import SimulationError
 
-__all__ = ["Tableau", "HEUN", "RK4", "DOPRI5", "TABLEAUX", "Trajectory", "integrate"]
+__all__ = ["Tableau", "HEUN", "RK4", "DOPRI5", "TABLEAUX", "Trajectory", "integrate", "steps_per_save",
+           "check_sampling", "MIN_SAVED_INTERVALS", "MAX_OUTPUT_BYTES"]
 
 # Kernel status codes.
 OK = 0
@@ -429,6 +430,62 @@ def _initial_step(tab, t0, x0, p, drive, rtol, atol, span, hmax):
     return min(100 * h0, h1, span, hmax)
 
 
+#: fewest saved intervals a run of the command-line tools may have (``check_sampling``): with
+#: fewer, the output is a few points, not a trajectory, and the metrics and criteria computed on
+#: it would be numbers without meaning
+MIN_SAVED_INTERVALS = 10
+#: largest saved output of one run (bytes: rows x states x 8) the command-line tools start: a
+#: mistyped duration, speed or N_c would otherwise end, minutes later, in a failed allocation
+#: (the thesis's runs save 13 MB at N_c = 100)
+MAX_OUTPUT_BYTES = 2 * 2**30
+
+
+def steps_per_save(dt: float, save_dt: float) -> int:
+    """Fixed steps per saved row, ``save_dt / dt``; ValueError unless it is a whole number
+    (within 1e-9 relative): the fixed-step kernel saves every k-th step."""
+    k = int(round(save_dt / dt))
+    if k < 1 or abs(k * dt - save_dt) > 1e-9 * save_dt:
+        raise ValueError(f"save_dt={save_dt!r} must be a multiple of dt={dt!r} (within 1e-9 relative)")
+    return k
+
+
+def check_sampling(method: str, dt: float, save_dt: float, duration: float,
+                   n_states: int | None = None) -> None:
+    """Refuse sampling settings a run cannot honour, before any run starts.
+
+    Parameters
+    ----------
+    method : str
+        A key of :data:`TABLEAUX`; ``dt`` matters only for a fixed-step one.
+    dt, save_dt, duration : float
+        Fixed step, output interval and simulated time (s).
+    n_states : int, optional
+        Length of the state vector (:func:`state_size`); with it, the saved output is held to
+        :data:`MAX_OUTPUT_BYTES`.
+
+    Raises
+    ------
+    ValueError
+        ``save_dt`` not a whole multiple of ``dt`` (fixed step), the run shorter than
+        :data:`MIN_SAVED_INTERVALS` output intervals, or its output larger than
+        :data:`MAX_OUTPUT_BYTES`. The message names ``dt``/``save_dt``; callers put it in their
+        own terms (an option, a spec key).
+    """
+    if not _resolve_method(method).adaptive:
+        steps_per_save(dt, save_dt)
+    if duration < MIN_SAVED_INTERVALS * save_dt:
+        raise ValueError(f"save_dt={save_dt!r} s gives {duration / save_dt:.3g} saved intervals over the "
+                         f"{duration:g} s run; at least {MIN_SAVED_INTERVALS} are needed (make save_dt "
+                         f"at most {duration / MIN_SAVED_INTERVALS:g} s)")
+    if n_states is not None:
+        size = (math.floor(duration / save_dt) + 2) * n_states * 8
+        if size > MAX_OUTPUT_BYTES:
+            raise ValueError(f"a {duration:g} s run saved every {save_dt:g} s with {n_states} states would "
+                             f"hold {size / 2**30:.3g} GiB of output, more than the limit of "
+                             f"{MAX_OUTPUT_BYTES / 2**30:g} GiB (a shorter run, a larger save_dt or fewer "
+                             "circles)")
+
+
 def integrate(x0, p, drive, t_end, method="rk4", dt=1e-4, save_dt=1e-3, rtol=1e-6, atol=1e-9,
               h0=None, hmax=math.inf, max_steps=10**8, t0=0.0,
               progress: Callable[[float], object] | None = None,
@@ -538,10 +595,10 @@ def integrate(x0, p, drive, t_end, method="rk4", dt=1e-4, save_dt=1e-3, rtol=1e-
 
     if not use_adaptive:
         dt = _positive("dt", dt)
-        save_every = int(round(save_dt / dt))
-        if save_every < 1 or abs(save_every * dt - save_dt) > 1e-9 * save_dt:
-            raise ValueError(f"integrate: save_dt={save_dt!r} must be a multiple of dt={dt!r} "
-                             f"(within 1e-9 relative)")
+        try:
+            save_every = steps_per_save(dt, save_dt)
+        except ValueError as exc:
+            raise ValueError(f"integrate: {exc}") from None
         # step count from the save grid (not from span/dt) so that the last save row is always
         # written: whole save intervals, plus ceil(remainder/dt) steps if t_end is off the grid
         n_steps = n_full * save_every

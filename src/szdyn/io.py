@@ -1,11 +1,14 @@
-"""Atomic file output: a reader sees the old file or the complete new one, never a part."""
+"""Atomic file output: a reader sees the old file or the complete new one, never a part; and a
+set of files written elsewhere and moved in only once all of them are made."""
 from __future__ import annotations
 
 import json
 import os
+import shutil
 import tempfile
+from contextlib import contextmanager
 from pathlib import Path
-from typing import Mapping
+from typing import Iterator, Mapping, Sequence
 
 import numpy as np
 
@@ -58,3 +61,45 @@ def write_csv(path, columns: Mapping[str, np.ndarray]) -> Path:
     lines = [",".join(names)]
     body = "\n".join(",".join(f"{v:.10g}" for v in row) for row in data)
     return atomic_write_text(path, "\n".join(lines) + "\n" + body + "\n")
+
+
+@contextmanager
+def staged_output(dest, last: Sequence[str] = ()) -> Iterator[Path]:
+    """Write a set of files into a staging directory inside ``dest``; move them in at the end.
+
+    A run that fails or is interrupted part-way leaves ``dest`` as it was (the earlier results
+    are neither lost nor mixed with new ones); only when the ``with`` block ends normally are
+    the staged files moved into ``dest`` one by one (``os.replace``, subdirectories merged),
+    the names in ``last`` last and in that order (a reader that checks for the last file sees a
+    complete set). Files of ``dest`` that the new set does not replace are kept.
+
+    Parameters
+    ----------
+    dest : path-like
+        Output directory; created if missing. A file there is refused (``NotADirectoryError``).
+    last : sequence of str
+        Relative paths (in the staged set) to move after all others.
+
+    Yields
+    ------
+    Path
+        The staging directory (hidden, ``.partial-*``; removed at the end either way).
+    """
+    dest = Path(dest)
+    if dest.exists() and not dest.is_dir():
+        raise NotADirectoryError(f"{dest} is a file, not a directory")
+    dest.mkdir(parents=True, exist_ok=True)
+    stage = Path(tempfile.mkdtemp(prefix=".partial-", dir=dest))
+    try:
+        yield stage
+        order = {name: k + 1 for k, name in enumerate(last)}
+        files = sorted((p.relative_to(stage).as_posix() for p in stage.rglob("*") if p.is_file()),
+                       key=lambda n: (order.get(n, 0), n))
+        for rel in files:
+            target = dest / rel
+            if target.is_dir():
+                raise IsADirectoryError(f"{target} is a directory; the new {rel} cannot replace it")
+            target.parent.mkdir(parents=True, exist_ok=True)
+            os.replace(stage / rel, target)
+    finally:
+        shutil.rmtree(stage, ignore_errors=True)

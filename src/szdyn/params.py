@@ -98,7 +98,8 @@ def _fmt(value) -> str:
 
 
 def _as_real(name: str, value) -> float:
-    if isinstance(value, numbers.Real):
+    # (a JSON true is a Python bool, which is an int: refused, not read as 1)
+    if isinstance(value, numbers.Real) and not isinstance(value, bool):
         return float(value)
     raise ParameterError(f"parameter '{name}' must be a real number, got {value!r}")
 
@@ -189,6 +190,17 @@ def validate(values: Mapping[str, float], n_circles: int, names=None) -> dict[st
     if has("t_c", "d") and not out["t_c"] < out["d"]:
         raise ParameterError(f"parameter 't_c' (circle radius) must be < d = {out['d']!r} m, "
                              f"got {out['t_c']!r}")
+    return out
+
+
+def _no_duplicate_keys(pairs) -> dict:
+    """``json.loads`` hook: a key given twice in one object is refused (json would keep the
+    last silently, and which of two values the user meant is unknowable)."""
+    out = {}
+    for key, value in pairs:
+        if key in out:
+            raise ParameterError(f"key '{key}' appears twice in one object")
+        out[key] = value
     return out
 
 
@@ -347,7 +359,7 @@ class ParameterSet:
                 "geometry": self.geometry.to_dict(), "values": dict(self.values)}
 
     @classmethod
-    def from_dict(cls, data: Mapping, *, missing: str = "defaults") -> "ParameterSet":
+    def from_dict(cls, data: Mapping, *, missing: str = "defaults", source: str | None = None) -> "ParameterSet":
         """Build a validated set from :meth:`to_dict` output.
 
         Parameters
@@ -359,6 +371,8 @@ class ParameterSet:
             What to do with names of ``PARAM_NAMES`` absent from ``values`` (e.g. parameters
             appended after the file was written): take them from :mod:`szdyn.defaults` with a
             warning naming them, or raise.
+        source : str, optional
+            Where ``data`` came from (a file name), for the warning.
 
         Raises
         ------
@@ -397,8 +411,8 @@ class ParameterSet:
                 if n not in dflt:
                     raise ParameterError(f"missing value for parameter '{n}' and no default")
                 values[n] = dflt[n]
-            warnings.warn("parameters not given, taken from szdyn.defaults: " + ", ".join(absent),
-                          stacklevel=2)
+            warnings.warn((f"{source}: " if source else "") + "parameters not given, taken from "
+                          "szdyn.defaults: " + ", ".join(absent), stacklevel=2)
         geo = data.get("geometry")
         if geo is None:
             geometry = defaults.default_geometry()
@@ -440,12 +454,17 @@ class ParameterSet:
             with the file name and names the key.
         """
         path = Path(path)
-        text = path.read_text(encoding="utf-8")
         try:
-            data = json.loads(text)
+            text = path.read_bytes().decode("utf-8")
+        except UnicodeDecodeError:
+            raise ParameterError(f"{path}: not UTF-8 text (a parameter JSON file was expected)") from None
+        try:
+            data = json.loads(text, object_pairs_hook=_no_duplicate_keys)
         except json.JSONDecodeError as exc:
             raise ParameterError(f"{path}: not valid JSON: {exc}") from exc
+        except ParameterError as exc:
+            raise ParameterError(f"{path}: {exc}") from None
         try:
-            return cls.from_dict(data, missing=missing)
+            return cls.from_dict(data, missing=missing, source=path.name)
         except ParameterError as exc:
             raise ParameterError(f"{path}: {exc}") from exc

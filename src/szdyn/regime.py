@@ -11,13 +11,14 @@ resumable, and writes ``regime_map.csv``/``.json``/``.png`` beside the sweep's o
 from __future__ import annotations
 
 import csv
+import io
 import math
 from pathlib import Path
 
-import numpy as np
 
 from .criteria import classify_regime
-from .io import write_csv, write_json
+from .errors import UserInputError
+from .io import atomic_write_text, write_json
 from .params import ParameterSet
 
 #: Second axes offered by the CLI: name -> (values as factors of the default, log scale?)
@@ -111,8 +112,8 @@ def plot_regime_map(rows, second: str, default_point, path) -> Path:
 def run_regime_map(params: ParameterSet, out: Path, *, second="b_c", interference_mm=None, factors=None,
                    workers=None, progress=True, **spec_kw) -> dict:
     """Run (or resume) the regime map sweep into ``out``; write the map's CSV, JSON and PNG."""
-    from .sweep import run_sweep
-    from .sweep_spec import parse_spec
+    from .sweep import _cell, run_sweep
+    from .sweep_spec import SpecError, parse_spec
 
     if second not in SECOND_AXES:
         raise ValueError(f"second axis must be one of {sorted(SECOND_AXES)}, got {second!r}")
@@ -120,12 +121,31 @@ def run_regime_map(params: ParameterSet, out: Path, *, second="b_c", interferenc
     if interference_mm is None:
         interference_mm = sorted({round(default_i + k * 0.02, 9) for k in range(-4, 5)})
     factors = SECOND_AXES[second] if factors is None else factors
+    if params[second] == 0:
+        raise UserInputError(f"the regime map sweeps {second} as factors {', '.join(map(str, factors))} of its "
+                             f"value, which is 0 here (--set or --params): every case would be the same; "
+                             "give it a nonzero value or choose another --second")
     second_values = sorted({float(params[second] * f) for f in factors})
-    spec = parse_spec(regime_spec(params, interference_mm, second, second_values, **spec_kw))
+    try:
+        spec = parse_spec(regime_spec(params, interference_mm, second, second_values, **spec_kw))
+    except SpecError as exc:
+        # the spec is the map's own, built around the given parameters: say which of them put
+        # a case out of bounds, not a table the user never wrote
+        raise UserInputError(
+            f"the regime map around R_w = {params['R_w']:g} m, {second} = {params[second]:g} sweeps "
+            f"the interference over {min(interference_mm):g}..{max(interference_mm):g} mm and {second} "
+            f"over {min(second_values):g}..{max(second_values):g}; a case is out of bounds: {exc}") from None
     result = run_sweep(spec, out, workers=workers, progress=progress, plot=False)
     rows = classify_table(result.table, params, second)
-    cols = ["case_id", "interference_mm", second, "hold_wheel_rad_s", "hold_band_rad_s", "band_over_wheel"]
-    write_csv(out / "regime_map.csv", {c: np.array([r[c] for r in rows], float) for c in cols})
+    cols = ["case_id", "interference_mm", second, "hold_wheel_rad_s", "hold_band_rad_s", "band_over_wheel",
+            "regime", "status"]
+    # a failed or undefined case has no speeds: an empty cell (as in the sweep's cases.csv), so
+    # that one diverged case does not stop the map from being written
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(cols)
+    w.writerows([_cell(r[c]) for c in cols] for r in rows)
+    atomic_write_text(out / "regime_map.csv", buf.getvalue())
     counts = {k: sum(r["regime"] == k for r in rows) for k in REGIMES}
     summary = {
         "second_axis": second, "default": {"interference_mm": default_i, second: float(params[second])},

@@ -12,6 +12,7 @@ import argparse
 import math
 import sys
 import textwrap
+import warnings
 from pathlib import Path
 
 from .errors import ParameterError, SimulationError, UserInputError, interrupted
@@ -27,10 +28,17 @@ def _parse_set(items) -> dict[str, float]:
         name, sep, value = item.partition("=")
         if not sep or not name.strip():
             raise UserInputError(f"--set expects NAME=VALUE, got {item!r}")
+        name = name.strip()
+        if name == "geometry":
+            raise UserInputError("--set geometry: the band geometry is a table, not a number; give it in a "
+                                 "--params file (key 'geometry')")
         try:
-            out[name.strip()] = float(value)
+            v = float(value)
         except ValueError:
-            raise UserInputError(f"--set {name.strip()}: expected a number, got {value!r}") from None
+            raise UserInputError(f"--set {name}: expected a number, got {value!r}") from None
+        if name in out and out[name] != v:
+            raise UserInputError(f"--set {name} is given twice ({out[name]:g} and {v:g}); give it once")
+        out[name] = v
     return out
 
 
@@ -41,6 +49,13 @@ def _positive_float(text: str) -> float:
         raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
     if not (math.isfinite(v) and v > 0):
         raise argparse.ArgumentTypeError(f"expected a positive finite number, got {text!r}")
+    return v
+
+
+def _tolerance(text: str) -> float:
+    v = _positive_float(text)
+    if not v < 1:
+        raise argparse.ArgumentTypeError(f"expected a relative tolerance below 1 (e.g. 1e-5), got {text!r}")
     return v
 
 
@@ -56,7 +71,8 @@ def _positive_int(text: str) -> int:
 
 def add_parameter_options(ap: argparse.ArgumentParser) -> None:
     """``--params``, ``--set`` and ``--n-circles``, shared by the commands (see load_parameters)."""
-    ap.add_argument("--params", type=Path, help="parameter JSON file (as written to OUT/params.json); default: built-in defaults")
+    ap.add_argument("--params", type=Path, help="parameter JSON file (as simulate writes to OUT/thesis-fig10/params.json "
+                    "and diagnose to its --out DIR/params.json); default: built-in defaults")
     ap.add_argument("--set", action="append", metavar="NAME=VALUE", help="override one parameter (SI units); repeatable")
     ap.add_argument("--n-circles", type=_positive_int, help="number of small circles N_c (default: from the parameter set)")
 
@@ -77,7 +93,8 @@ def build_parser() -> argparse.ArgumentParser:
     )
     ap.add_argument("--scenario", default="thesis-fig10", choices=sorted(SCENARIOS),
                     help="scenario to run (default: %(default)s)")
-    ap.add_argument("--out", type=Path, default=Path("results"), help="output directory (default: %(default)s)")
+    ap.add_argument("--out", type=Path, default=Path("results"),
+                    help="output directory; the files go into OUT/SCENARIO/ (default: %(default)s)")
     add_parameter_options(ap)
     ap.add_argument("--contact", choices=tuple(CONTACT_MODELS), default=None,
                     help="wheel-band transmission to run: impact (thesis), coulomb or lugre friction "
@@ -87,12 +104,14 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--method", choices=METHODS, default="dopri5",
                     help="integrator: heun (thesis's modified Euler), rk4 (fixed step), dopri5 (adaptive); default %(default)s")
     ap.add_argument("--dt", type=_positive_float, default=1e-5, help="fixed step for heun/rk4 in s (default %(default)s)")
-    ap.add_argument("--rtol", type=_positive_float, default=1e-5, help="dopri5 relative tolerance (default %(default)s)")
+    ap.add_argument("--rtol", type=_tolerance, default=1e-5, help="dopri5 relative tolerance (default %(default)s)")
     ap.add_argument("--atol", type=_positive_float, default=1e-8, help="dopri5 absolute tolerance (default %(default)s)")
     ap.add_argument("--save-dt", type=_positive_float, default=1e-3, help="output sampling interval in s (default %(default)s)")
     ap.add_argument("--omega-hold", type=_positive_float, default=math.pi,
                     help="wheel speed at the end of each ramp, rad/s (default pi)")
-    ap.add_argument("--t-hold", type=_positive_float, default=3.0, help="hold duration after each ramp, s (default %(default)s)")
+    ap.add_argument("--t-hold", type=_positive_float, default=3.0,
+                    help="hold duration after each ramp, s (default %(default)s); criterion (a) reads the hold "
+                         "from 0.5 s after the ramp")
     ap.add_argument("--quiet", action="store_true", help="no progress output")
     return ap
 
@@ -102,6 +121,9 @@ def load_parameters(args):
     from .params import ParameterSet
 
     if args.params is not None:
+        if args.params.is_dir():
+            raise UserInputError(f"--params: {args.params} is a directory; give the parameter JSON file "
+                                 "(e.g. OUT/thesis-fig10/params.json)")
         if not args.params.is_file():
             raise UserInputError(f"--params: no such file: {args.params}")
         params = ParameterSet.from_json(args.params)
@@ -109,26 +131,70 @@ def load_parameters(args):
         params = default_parameters()
     changes = _parse_set(args.set)
     if args.n_circles is not None:
+        if changes.get("n_circles", args.n_circles) != args.n_circles:
+            raise UserInputError(f"--n-circles {args.n_circles} and --set n_circles={changes['n_circles']:g} "
+                                 "disagree; give one")
         changes["n_circles"] = args.n_circles
     return params.replace(**changes) if changes else params
 
 
+def _check_out_dir(option: str, *dirs: Path) -> None:
+    """Refuse an output path that is (or lies under) a file, before any run starts."""
+    for d in dirs:
+        for p in (d, *d.parents):
+            if p.exists() and not p.is_dir():
+                raise UserInputError(f"{option}: {p} is a file, not a directory")
+
+
+def _check_run_sampling(args, params, specs) -> None:
+    """The integrator options against every run of the scenario (before any run starts)."""
+    from szdyn_generated.spiral_zipper import state_size
+
+    from .integrators import check_sampling
+
+    for spec in specs:
+        try:
+            check_sampling(args.method, args.dt, args.save_dt, spec.t_end, n_states=state_size(params.n_circles))
+        except ValueError as exc:
+            raise UserInputError(f"run {spec.name} ({spec.t_end:g} s with --omega-hold {args.omega_hold:g} "
+                                 f"--t-hold {args.t_hold:g}, --method {args.method}): "
+                                 + str(exc).replace("save_dt=", "--save-dt ").replace("dt=", "--dt ")
+                                 .replace("save_dt", "--save-dt")) from None
+
+
 def simulate_command(argv) -> int:
+    from .io import staged_output
+    from .scenarios import SCENARIOS
     from .thesis import CRITERIA_LABELS, Integration, run_fig10
 
     args = build_parser().parse_args(argv)
     params = load_parameters(args)
+    if "contact_model" in _parse_set(args.set):
+        raise UserInputError("--set contact_model: the transmission is chosen with --contact "
+                             f"({', '.join(CONTACT_MODELS)}), not as a parameter")
     models = [args.contact] if args.contact else list(CONTACT_MODELS)
     integ = Integration(args.method, args.dt, args.rtol, args.atol, args.save_dt)
     out = args.out / args.scenario
-    result = run_fig10(params, out, models=models, integ=integ, omega_hold=args.omega_hold,
-                       t_hold=args.t_hold, workers=args.workers, progress=not args.quiet)
+    _check_out_dir("--out", out)
+    _check_run_sampling(args, params, SCENARIOS[args.scenario](omega_hold=args.omega_hold, t_hold=args.t_hold))
+    # written elsewhere and moved into OUT only when every run succeeded: an interrupted or failed
+    # run leaves the previous results as they were, not a mix of old and new files
+    with staged_output(out, last=("thesis-fig10.json",)) as stage:
+        result = run_fig10(params, stage, models=models, integ=integ, omega_hold=args.omega_hold,
+                           t_hold=args.t_hold, workers=args.workers, progress=not args.quiet)
     for m, r in result["models"].items():
-        marks = ", ".join(f"{CRITERIA_LABELS[k]} {'met' if r['criteria'][k]['passed'] else 'NOT met'}"
-                          for k in CRITERIA_LABELS)
+        marks = ", ".join(f"{CRITERIA_LABELS[k]} {_verdict(r['criteria'][k])}" for k in CRITERIA_LABELS)
         print(f"{m}: {marks}")
     print(f"wrote {out / 'thesis-fig10.png'}, {out / 'thesis-fig10.json'} and per-run CSVs in {out}")
     return 0
+
+
+def _verdict(criterion: dict) -> str:
+    """'met', 'NOT met', or 'not evaluable (why)' when the runs could not decide it."""
+    reason = (criterion.get("detail") or {}).get("reason")
+    if criterion.get("value") is None and reason:
+        return f"not evaluable ({reason})"
+    return "met" if criterion["passed"] else "NOT met"
 
 
 def regime_command(argv) -> int:
@@ -140,7 +206,8 @@ def regime_command(argv) -> int:
                     "to a held speed and is classified stick / partial slip / full slip. Parallel and resumable "
                     "(re-run the same command to continue); writes regime_map.png/.json/.csv into OUT.")
     ap.add_argument("--second", choices=sorted(SECOND_AXES), default="b_c",
-                    help="second axis, swept as factors %s of its default (default: %%(default)s)" %
+                    help="second axis, swept as factors %s of its value in the parameter set (after --params "
+                         "and --set; default axis: %%(default)s)" %
                          ", ".join(f"{k}: {v}" for k, v in SECOND_AXES.items()))
     ap.add_argument("--out", type=Path, default=None, help="output directory (default: results/regime-SECOND)")
     add_parameter_options(ap)
@@ -185,6 +252,10 @@ COMMAND_HELP = {
 }
 
 
+def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:
+    print(f"szdyn: warning: {message}", file=sys.stderr if file is None else file)
+
+
 def main(argv=None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     command = "simulate"
@@ -199,7 +270,11 @@ def main(argv=None) -> int:
               file=sys.stderr)
         return 2
     try:
-        return COMMANDS[command](argv)
+        with warnings.catch_warnings():
+            # a warning for the user (a parameter taken from the defaults ...) without the
+            # source line Python's default format adds
+            warnings.showwarning = _show_warning
+            return COMMANDS[command](argv)
     except (UserInputError, ParameterError) as exc:
         print(f"szdyn: error: {exc}", file=sys.stderr)
         return 2

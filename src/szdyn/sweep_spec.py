@@ -400,6 +400,7 @@ def parse_spec(data: dict) -> SweepSpec:
         g = dict(zip([a["name"] for a in axes], point))
         for s in samples:
             cases.append({**g, **s})
+    _check_case_sampling(integrator, t_end, ps.n_circles, cases)
 
     canonical = {"format": FORMAT, "version": VERSION, "description": description,
                  "base": base, "axes": axes, "sampling": sampling,
@@ -410,6 +411,34 @@ def parse_spec(data: dict) -> SweepSpec:
 
 
 # --------------------------------------------------------------------------- helpers
+def _check_case_sampling(integrator: dict, t_end: float, n_circles: int, cases: list) -> None:
+    """Refuse, before any case runs, a save interval that is not a multiple of a fixed step,
+    leaves a run with too few samples or makes its output too large
+    (:func:`szdyn.integrators.check_sampling`): such a case would fail every time it is
+    retried, give metrics from a handful of points, or end in a failed allocation."""
+    from szdyn_generated.spiral_zipper import state_size
+
+    from .integrators import check_sampling
+
+    keys = ("integrator.dt", "integrator.save_dt", "t_end", "n_circles")
+    swept = [k for k in keys if any(k in c for c in cases)]
+    seen = set()
+    for k, c in enumerate(cases):
+        combo = (c.get("integrator.dt", integrator["dt"]), c.get("integrator.save_dt", integrator["save_dt"]),
+                 c.get("t_end", t_end), c.get("n_circles", n_circles))
+        if combo in seen:
+            continue
+        seen.add(combo)
+        dt, save_dt, span, nc = combo
+        try:
+            check_sampling(integrator["method"], dt, save_dt, span, n_states=state_size(int(nc)))
+        except ValueError as exc:
+            where = (f"case {k} ({', '.join(f'{n} = {c[n]!r}' for n in swept if n in c)})" if swept
+                     else "[base]")
+            raise SpecError(f"{where}: {exc}; see [base.integrator] (method "
+                            f"{integrator['method']!r}) and [base] t_end") from None
+
+
 def _is_integer_param(name: str) -> bool:
     try:
         from szdyn_generated.spiral_zipper import PARAM_BOUNDS
@@ -461,6 +490,8 @@ def _axis_values(name: str, spec):
         start = _number(f"{where} key 'start'", spec["start"])
         stop = _number(f"{where} key 'stop'", spec["stop"])
         num = int(_number(f"{where} key 'num'", spec["num"], positive=True, integer=True))
+        if num > MAX_CASES:   # before the values are made: a typo of 1e9 would allocate 8 GB
+            raise SpecError(f"{where}: num = {num} values, more than the limit of {MAX_CASES} cases")
         scale = _string(f"{where} key 'scale'", spec.get("scale", "linear"), ("linear", "log"))
         if scale == "log":
             if not (start > 0 and stop > 0):

@@ -88,10 +88,7 @@ import argparse
 import difflib
 import json
 import math
-import os
-import shutil
 import sys
-import tempfile
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -101,7 +98,7 @@ import numpy as np
 
 from szdyn.errors import SimulationError, UserInputError
 from szdyn.heldout import least_hiding, split_features
-from szdyn.io import atomic_write_text, write_json
+from szdyn.io import atomic_write_text, staged_output, write_json
 
 __all__ = ["Effect", "EFFECTS", "EFFECT_IDS", "RampSpec", "DEFAULT_RAMPS", "QUICK_RAMPS",
            "PERTURBED", "SynthError", "synthesize", "synth_command", "effect_changes",
@@ -453,22 +450,14 @@ def synthesize(out_dir, effect: str = "none", amplitude=None, seed: int = 0,
     out = Path(out_dir)
     if out.exists() and not out.is_dir():
         raise SynthError(f"output directory {out} is a file")
-    out.mkdir(parents=True, exist_ok=True)
     # everything is written into a staging directory and moved in at the end: a run that fails
     # while simulating (an unphysical truth, Ctrl-C) writes none of its files, so old and new
-    # recordings are not mixed
-    stage = Path(tempfile.mkdtemp(prefix=".synth-partial-", dir=out))
-    try:
+    # recordings are not mixed; the manifest, then truth.json last: a reader that checks for
+    # truth.json (the grid) sees a complete set
+    with staged_output(out, last=("manifest.toml", "truth.json")) as stage:
         truth = _synthesize_into(stage, out, effect, amplitude, A, seed, loads, ramps, perturb,
                                  n_circles, dt, save_dt, base, coeffs, factors, model_changes,
                                  sensor_changes, sensor, verbose)
-        # the manifest, then truth.json last: a reader that checks for truth.json (the grid)
-        # sees a complete set
-        last = {"manifest.toml": 1, "truth.json": 2}
-        for name in sorted((p.name for p in stage.iterdir()), key=lambda n: (last.get(n, 0), n)):
-            os.replace(stage / name, out / name)
-    finally:
-        shutil.rmtree(stage, ignore_errors=True)
     return truth
 
 
