@@ -15,7 +15,6 @@ import io
 import math
 from pathlib import Path
 
-
 from .criteria import classify_regime
 from .errors import UserInputError
 from .io import atomic_write_text, write_json

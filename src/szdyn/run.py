@@ -138,12 +138,11 @@ def load_parameters(args):
     return params.replace(**changes) if changes else params
 
 
-def _check_out_dir(option: str, *dirs: Path) -> None:
+def _check_out_dir(option: str, out: Path) -> None:
     """Refuse an output path that is (or lies under) a file, before any run starts."""
-    for d in dirs:
-        for p in (d, *d.parents):
-            if p.exists() and not p.is_dir():
-                raise UserInputError(f"{option}: {p} is a file, not a directory")
+    for p in (out, *out.parents):
+        if p.exists() and not p.is_dir():
+            raise UserInputError(f"{option}: {p} is a file, not a directory")
 
 
 def _check_run_sampling(args, params, specs) -> None:
