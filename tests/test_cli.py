@@ -96,6 +96,15 @@ def test_bad_params_file_names_the_file(tmp_path, capsys, content, expect):
     assert "is a directory" in capsys.readouterr().err
 
 
+def test_a_criterion_without_a_value_is_not_met_with_its_reason():
+    from szdyn.run import _verdict
+
+    assert _verdict({"passed": True, "value": 0.2, "detail": {}}) == "met"
+    assert _verdict({"passed": False, "value": 0.01, "detail": {}}) == "NOT met"
+    short = {"passed": False, "value": None, "detail": {"reason": "ramp_0.1pi: only 0 hold samples"}}
+    assert _verdict(short) == "NOT met (no value: ramp_0.1pi: only 0 hold samples)"
+
+
 def test_out_that_is_a_file_is_refused(tmp_path, capsys):
     (tmp_path / "f").write_text("mine")
     for out in (tmp_path / "f", tmp_path / "f" / "sub"):

@@ -253,3 +253,21 @@ def test_prescribed_ramp_from_t0_is_exact(smooth_case, method):
     angle, speed, _ = ramp.evaluate(traj.t, angle0=0.3)
     np.testing.assert_allclose(traj.x[:, 0], angle, rtol=0, atol=1e-12)
     np.testing.assert_allclose(traj.x[:, n], speed, rtol=0, atol=1e-12)
+
+
+def test_check_sampling_limits_and_its_boundaries():
+    from szdyn.integrators import MAX_OUTPUT_BYTES, check_sampling
+
+    check_sampling("rk4", 1e-5, 1e-3, 1.0)
+    with pytest.raises(ValueError, match="save_dt=0.001 must be a multiple of dt=0.0003"):
+        check_sampling("rk4", 3e-4, 1e-3, 1.0)
+    check_sampling("dopri5", 3e-4, 1e-3, 1.0)   # dt is not used by the adaptive method
+    # exactly 10 intervals pass though 0.7 / 0.07 is 9.999999999999998 in floating point
+    check_sampling("dopri5", 1e-5, 0.07, 0.7)
+    with pytest.raises(ValueError, match="gives 9.9 saved intervals"):
+        check_sampling("dopri5", 1e-5, 0.1, 0.99)
+    # the output limit: rows x states x 8 bytes
+    rows = MAX_OUTPUT_BYTES // (8 * 205) - 2
+    check_sampling("dopri5", 1e-5, 1e-3, (rows - 1) * 1e-3, n_states=205)
+    with pytest.raises(ValueError, match="GiB of output"):
+        check_sampling("dopri5", 1e-5, 1e-3, (rows + 2) * 1e-3, n_states=205)

@@ -473,7 +473,7 @@ def check_sampling(method: str, dt: float, save_dt: float, duration: float,
     """
     if not _resolve_method(method).adaptive:
         steps_per_save(dt, save_dt)
-    if duration < MIN_SAVED_INTERVALS * save_dt:
+    if duration / save_dt < MIN_SAVED_INTERVALS * (1 - 1e-9):   # (0.7 s at 0.07 s is 10, not 9.99...)
         raise ValueError(f"save_dt={save_dt!r} s gives {duration / save_dt:.3g} saved intervals over the "
                          f"{duration:g} s run; at least {MIN_SAVED_INTERVALS} are needed (make save_dt "
                          f"at most {duration / MIN_SAVED_INTERVALS:g} s)")

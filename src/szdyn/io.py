@@ -76,7 +76,7 @@ def staged_output(dest, last: Sequence[str] = ()) -> Iterator[Path]:
     Parameters
     ----------
     dest : path-like
-        Output directory; created if missing. A file there is refused (``NotADirectoryError``).
+        Output directory; created if missing.
     last : sequence of str
         Relative paths (in the staged set) to move after all others.
 
@@ -84,10 +84,18 @@ def staged_output(dest, last: Sequence[str] = ()) -> Iterator[Path]:
     ------
     Path
         The staging directory (hidden, ``.partial-*``; removed at the end either way).
+
+    Raises
+    ------
+    UserInputError
+        ``dest`` is a file, or a new file's place in it is taken by a directory (or a
+        directory's by a file). Checked before anything is moved, so nothing is mixed.
     """
+    from .errors import UserInputError
+
     dest = Path(dest)
     if dest.exists() and not dest.is_dir():
-        raise NotADirectoryError(f"{dest} is a file, not a directory")
+        raise UserInputError(f"{dest} is a file, not a directory")
     dest.mkdir(parents=True, exist_ok=True)
     stage = Path(tempfile.mkdtemp(prefix=".partial-", dir=dest))
     try:
@@ -95,10 +103,17 @@ def staged_output(dest, last: Sequence[str] = ()) -> Iterator[Path]:
         order = {name: k + 1 for k, name in enumerate(last)}
         files = sorted((p.relative_to(stage).as_posix() for p in stage.rglob("*") if p.is_file()),
                        key=lambda n: (order.get(n, 0), n))
-        for rel in files:
+        for rel in files:   # all checked before the first move
             target = dest / rel
             if target.is_dir():
-                raise IsADirectoryError(f"{target} is a directory; the new {rel} cannot replace it")
+                raise UserInputError(f"{target} is a directory where the new file {rel} goes; move it away "
+                                     "(the new results were not written)")
+            for parent in target.relative_to(dest).parents:
+                if (dest / parent).exists() and not (dest / parent).is_dir():
+                    raise UserInputError(f"{dest / parent} is a file where the new directory of {rel} goes; "
+                                         "move it away (the new results were not written)")
+        for rel in files:
+            target = dest / rel
             target.parent.mkdir(parents=True, exist_ok=True)
             os.replace(stage / rel, target)
     finally:

@@ -38,10 +38,11 @@ hex), NaN or infinity, time going backwards, fewer than two data rows, and two t
 logger writes: a time step longer than both 10 s and 1000 median sample intervals (a mistyped
 time or a logger restart; :data:`GAP_FACTOR`, :data:`GAP_MIN_S`), and an angle step implying
 more than 10^4 rad/s over the step or the median interval, whichever is longer (a corrupted
-value or an encoder glitch; :data:`MAX_SPEED`). Also rejected: angles in degrees, told by travels
-that should agree and differ by about 180/pi (the band's and the wheel's, the wheel's and the one
-``omega_ref`` commands; :data:`DEGREE_RATIO`). Both angles in degrees without ``omega_ref`` cannot
-be told from radians.
+value or an encoder glitch; :data:`MAX_SPEED`). Also rejected: angles in degrees, told by a travel
+about 180/pi times one it cannot exceed (the band's over the wheel's, the wheel's over the one
+``omega_ref`` commands; :data:`DEGREE_RATIO`). Not told: every column in degrees (``omega_ref`` in
+deg/s too), both angles in degrees without ``omega_ref``, a wheel alone in degrees (it looks like
+a slipping band) or a set-point alone in deg/s (it looks like a stalled drive).
 
 Duplicate timestamps (decision): a row that repeats the previous row *exactly* (same ``t``
 and same values in every used column) is a logger re-send; it is dropped and a note is kept
@@ -406,14 +407,16 @@ def _check_plausible(cols: dict, lines: list, path) -> None:
 
 
 def _check_units(cols: dict, path) -> None:
-    """Refuse angles logged in degrees where the columns say rad (or a set-point in deg/s).
+    """Refuse angles logged in degrees where the columns say rad.
 
-    Two travels over the whole recording (max - min) must agree to within slip and tracking
-    error: the band's with the wheel's (the band encoder counts wheel-equivalent radians, and a
-    friction drive cannot make the band outrun the wheel: slip only makes it lag), and the
-    wheel's with the travel its set-point commands (the integral of ``omega_ref``). A ratio near
-    180/pi (:data:`DEGREE_RATIO`) is a unit mistake, not physics: the fit would run on speeds 57
-    times too large. Other mismatches (a stalled motor, a saturated drive) are left alone.
+    Two travels over the whole recording (max - min) cannot exceed their partner's by far: the
+    band's the wheel's (the band encoder counts wheel-equivalent radians, and a friction drive
+    cannot make the band outrun the wheel: slip only makes it lag), and the wheel's the travel
+    its set-point commands (the integral of ``omega_ref``). A ratio near 180/pi
+    (:data:`DEGREE_RATIO`) is a unit mistake, not physics: the fit would run on speeds 57 times
+    too large. The other direction is physics as often as a mistake (a stalled or saturated drive
+    lags its set-point, a slipping band its wheel), so it is left alone; so a set-point in deg/s,
+    a wheel alone in degrees without ``omega_ref``, or every column in degrees pass unnoticed.
     """
     travel = {c: float(np.ptp(cols[c])) for c in ("theta_w", "theta_b")}
     if "omega_ref" in cols:
@@ -422,8 +425,7 @@ def _check_units(cols: dict, path) -> None:
         travel["omega_ref"] = float(np.ptp(np.append(commanded, 0.0)))
     # (column, column it is compared with, why the two must agree, what to check)
     pairs = [("theta_b", "theta_w", "the band cannot outrun the wheel that drives it", "is theta_b in degrees?"),
-             ("theta_w", "omega_ref", "the wheel follows its set-point", "are the angles in degrees?"),
-             ("omega_ref", "theta_w", "the wheel follows its set-point", "is omega_ref in deg/s?")]
+             ("theta_w", "omega_ref", "a drive does not outrun its set-point", "are the angles in degrees?")]
     lo, hi = DEGREE_RATIO
     for col, other, why, ask in pairs:
         if col not in travel or other not in travel or min(travel[col], travel[other]) < UNITS_MIN_TRAVEL:

@@ -108,6 +108,23 @@ def plot_regime_map(rows, second: str, default_point, path) -> Path:
     return save_png(fig, path)
 
 
+def _check_sampling(spec: dict, params: ParameterSet) -> None:
+    """The map's runs against the sampling limits, in the command's terms (the sweep spec would
+    say it in tables of a spec the user never wrote)."""
+    from szdyn_generated.spiral_zipper import state_size
+
+    from .integrators import check_sampling
+
+    base = spec["base"]
+    drive, integ = base["drive"], base["integrator"]
+    try:
+        check_sampling(integ["method"], 1.0, integ["save_dt"], base["t_end"], n_states=state_size(params.n_circles))
+    except ValueError as exc:
+        raise UserInputError(f"the regime map's runs ramp at {drive['a']:g} rad/s^2 to --omega-hold "
+                             f"{drive['a'] * drive['t_ramp']:g} rad/s and hold {drive['t_hold']:g} s "
+                             f"({base['t_end']:g} s): {exc}") from None
+
+
 def run_regime_map(params: ParameterSet, out: Path, *, second="b_c", interference_mm=None, factors=None,
                    workers=None, progress=True, **spec_kw) -> dict:
     """Run (or resume) the regime map sweep into ``out``; write the map's CSV, JSON and PNG."""
@@ -125,8 +142,10 @@ def run_regime_map(params: ParameterSet, out: Path, *, second="b_c", interferenc
                              f"value, which is 0 here (--set or --params): every case would be the same; "
                              "give it a nonzero value or choose another --second")
     second_values = sorted({float(params[second] * f) for f in factors})
+    spec_dict = regime_spec(params, interference_mm, second, second_values, **spec_kw)
+    _check_sampling(spec_dict, params)
     try:
-        spec = parse_spec(regime_spec(params, interference_mm, second, second_values, **spec_kw))
+        spec = parse_spec(spec_dict)
     except SpecError as exc:
         # the spec is the map's own, built around the given parameters: say which of them put
         # a case out of bounds, not a table the user never wrote

@@ -36,7 +36,7 @@ def _parse_set(items) -> dict[str, float]:
             v = float(value)
         except ValueError:
             raise UserInputError(f"--set {name}: expected a number, got {value!r}") from None
-        if name in out and out[name] != v:
+        if name in out and repr(out[name]) != repr(v):   # (repr: the same nan twice is one value)
             raise UserInputError(f"--set {name} is given twice ({out[name]:g} and {v:g}); give it once")
         out[name] = v
     return out
@@ -189,11 +189,12 @@ def simulate_command(argv) -> int:
 
 
 def _verdict(criterion: dict) -> str:
-    """'met', 'NOT met', or 'not evaluable (why)' when the runs could not decide it."""
+    """'met' or 'NOT met', as thesis-fig10.json says, with the reason when the runs left the
+    criterion's measure undefined (a hold too short to read, a band that sticks)."""
     reason = (criterion.get("detail") or {}).get("reason")
-    if criterion.get("value") is None and reason:
-        return f"not evaluable ({reason})"
-    return "met" if criterion["passed"] else "NOT met"
+    if criterion["passed"]:
+        return "met"
+    return f"NOT met (no value: {reason})" if criterion.get("value") is None and reason else "NOT met"
 
 
 def regime_command(argv) -> int:
