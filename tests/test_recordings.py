@@ -103,7 +103,7 @@ def _ramp(band=lambda w: 0.9 * w, wheel=lambda w: w, ref=lambda v: v):
     ({"band": lambda w: math.degrees(0.9 * w)}, "theta_b", "is theta_b in degrees?"),
     # heavy slip: the band at half the wheel's speed, in degrees, travels 28.6x the wheel
     ({"band": lambda w: math.degrees(0.5 * w)}, "theta_b", "28.6 times theta_w's travel"),
-    ({"band": math.degrees, "wheel": math.degrees}, "theta_w", "are the angles in degrees?"),
+    ({"band": math.degrees, "wheel": math.degrees}, "theta_w", "are the angles in degrees, or is theta_w read before"),
 ])
 def test_angles_in_degrees_are_refused_naming_the_column(tmp_path, mistake, column, msg):
     with pytest.raises(RecordingError) as ei:

@@ -229,7 +229,7 @@ MAX_SPEED = 1e4
 GAP_FACTOR = 1000.0
 GAP_MIN_S = 10.0
 #: ratios of two travels that say "degrees where radians were meant" (180/pi = 57.3, with room
-#: for slip and tracking error): checked only between columns that must move together, and only
+#: for slip and tracking error): checked only for a travel over one it cannot exceed, and only
 #: when both travels exceed UNITS_MIN_TRAVEL (rad), so that encoder noise cannot trigger it
 DEGREE_RATIO = (20.0, 110.0)
 UNITS_MIN_TRAVEL = 0.5
@@ -423,9 +423,10 @@ def _check_units(cols: dict, path) -> None:
         w = cols["omega_ref"]
         commanded = np.cumsum(0.5 * (w[1:] + w[:-1]) * np.diff(cols["t"]))
         travel["omega_ref"] = float(np.ptp(np.append(commanded, 0.0)))
-    # (column, column it is compared with, why the two must agree, what to check)
+    # (column, the column whose travel it cannot exceed, why, what to check)
     pairs = [("theta_b", "theta_w", "the band cannot outrun the wheel that drives it", "is theta_b in degrees?"),
-             ("theta_w", "omega_ref", "a drive does not outrun its set-point", "are the angles in degrees?")]
+             ("theta_w", "omega_ref", "a drive does not outrun its set-point",
+              "are the angles in degrees, or is theta_w read before a gearbox (the model needs the wheel's angle)?")]
     lo, hi = DEGREE_RATIO
     for col, other, why, ask in pairs:
         if col not in travel or other not in travel or min(travel[col], travel[other]) < UNITS_MIN_TRAVEL:
