@@ -116,7 +116,7 @@ def test_slip_stalls_and_small_moves_pass_the_units_check(tmp_path):
     """The check leaves physics alone: a band at a tenth of the wheel (heavy slip), a wheel at a
     fortieth of its set-point (a stalled drive: the ratio of degrees, the other way round), a
     wheel in revolutions (6.3x, not 57x: the diagnosis's fit shows that one), and degrees over a
-    travel within the noise (0.3 rad)."""
+    wheel travel of 0.1 rad, under the 0.5 rad the check needs."""
     for kw in ({"band": lambda w: 0.1 * w}, {"band": lambda w: w / 40, "wheel": lambda w: w / 40},
                {"wheel": lambda w: w / (2 * math.pi), "band": lambda w: 0.9 * w / (2 * math.pi)}):
         assert len(read_recording(_write(tmp_path, _ramp(**kw)))) == 1000
