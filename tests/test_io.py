@@ -62,6 +62,7 @@ def test_a_failing_block_moves_nothing_and_a_file_dest_is_refused(tmp_path):
             raise RuntimeError("a run failed")
     assert list(dest.iterdir()) == []
     (tmp_path / "f").write_text("x")
-    with pytest.raises(UserInputError, match="is a file"):
-        with staged_output(tmp_path / "f"):
-            pass
+    for d in (tmp_path / "f", tmp_path / "f" / "sub"):
+        with pytest.raises(UserInputError, match="f is a file"):
+            with staged_output(d):
+                pass

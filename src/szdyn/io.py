@@ -88,14 +88,15 @@ def staged_output(dest, last: Sequence[str] = ()) -> Iterator[Path]:
     Raises
     ------
     UserInputError
-        ``dest`` is a file, or a new file's place in it is taken by a directory (or a
+        ``dest`` (or a directory above it) is a file, or a new file's place in it is taken by a directory (or a
         directory's by a file). Checked before anything is moved, so nothing is mixed.
     """
     from .errors import UserInputError
 
     dest = Path(dest)
-    if dest.exists() and not dest.is_dir():
-        raise UserInputError(f"{dest} is a file, not a directory")
+    for p in (dest, *dest.parents):   # (mkdir would fail on a file anywhere above, as a traceback)
+        if p.exists() and not p.is_dir():
+            raise UserInputError(f"{p} is a file, not a directory")
     dest.mkdir(parents=True, exist_ok=True)
     stage = Path(tempfile.mkdtemp(prefix=".partial-", dir=dest))
     try:

@@ -128,7 +128,7 @@ def _check_sampling(spec: dict, params: ParameterSet) -> None:
 def run_regime_map(params: ParameterSet, out: Path, *, second="b_c", interference_mm=None, factors=None,
                    workers=None, progress=True, **spec_kw) -> dict:
     """Run (or resume) the regime map sweep into ``out``; write the map's CSV, JSON and PNG."""
-    from .sweep import _cell, run_sweep
+    from .sweep import csv_cell, run_sweep
     from .sweep_spec import SpecError, parse_spec
 
     if second not in SECOND_AXES:
@@ -162,7 +162,7 @@ def run_regime_map(params: ParameterSet, out: Path, *, second="b_c", interferenc
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
     w.writerow(cols)
-    w.writerows([_cell(r[c]) for c in cols] for r in rows)
+    w.writerows([csv_cell(r[c]) for c in cols] for r in rows)
     atomic_write_text(out / "regime_map.csv", buf.getvalue())
     counts = {k: sum(r["regime"] == k for r in rows) for k in REGIMES}
     summary = {

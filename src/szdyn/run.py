@@ -138,13 +138,6 @@ def load_parameters(args):
     return params.replace(**changes) if changes else params
 
 
-def _check_out_dir(option: str, out: Path) -> None:
-    """Refuse an output path that is (or lies under) a file, before any run starts."""
-    for p in (out, *out.parents):
-        if p.exists() and not p.is_dir():
-            raise UserInputError(f"{option}: {p} is a file, not a directory")
-
-
 def _check_run_sampling(args, params, specs) -> None:
     """The integrator options against every run of the scenario (before any run starts)."""
     from szdyn_generated.spiral_zipper import state_size
@@ -174,7 +167,6 @@ def simulate_command(argv) -> int:
     models = [args.contact] if args.contact else list(CONTACT_MODELS)
     integ = Integration(args.method, args.dt, args.rtol, args.atol, args.save_dt)
     out = args.out / args.scenario
-    _check_out_dir("--out", out)
     _check_run_sampling(args, params, SCENARIOS[args.scenario](omega_hold=args.omega_hold, t_hold=args.t_hold))
     # written elsewhere and moved into OUT only when every run succeeded: an interrupted or failed
     # run leaves the previous results as they were, not a mix of old and new files

@@ -578,7 +578,8 @@ def _cpu_count() -> int:
 
 
 # --------------------------------------------------------------------------- table and plot
-def _cell(v) -> str:
+def csv_cell(v) -> str:
+    """One CSV cell: empty for None and non-finite floats (no NaN text in a table), bools as 0/1."""
     if v is None:
         return ""
     if isinstance(v, bool):
@@ -611,7 +612,7 @@ def assemble(out, spec: SweepSpec, *, plot: bool = True):
     w = csv.writer(buf, lineterminator="\n")
     w.writerow(header)
     for r in rows:
-        w.writerow([_cell(v) for v in r])
+        w.writerow([csv_cell(v) for v in r])
     table = atomic_write_text(out / TABLE_FILE, buf.getvalue())
     write_json(out / "columns.json", _columns_doc(spec, OUTPUT_UNITS))
     png = None
