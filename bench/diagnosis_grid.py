@@ -187,6 +187,10 @@ def main(argv=None):
     ap.add_argument("--effects", default=",".join(EFFECTS))
     ap.add_argument("--diagnose-args", default="", help="extra diagnose options (default: none, the CLI defaults)")
     ap.add_argument("--score-only", action="store_true", help="only (re)score finished cases")
+    ap.add_argument("--earlier", type=Path, default=None, metavar="JSON",
+                    help="raw results (a --json file) of cases scored before, whose work directory is "
+                         "gone: each case of this grid that --work has not finished is taken from it "
+                         "as it was scored then")
     ap.add_argument("--current", type=float, metavar="KT", default=None,
                     help="the recordings also log the motor current (synth --current KT, N m/A), and "
                          "the manifest gives KT: the diagnosis compares the motor torque too")
@@ -199,10 +203,24 @@ def main(argv=None):
     while effect_cases or null_cases:
         cases += effect_cases[:k] + null_cases[:1]
         effect_cases, null_cases = effect_cases[k:], null_cases[1:]
+    earlier = {}
+    if args.earlier is not None:
+        try:
+            earlier = {(r["effect"], r["seed"]): r for r in json.loads(args.earlier.read_text())}
+        except (OSError, ValueError, KeyError, TypeError) as exc:
+            raise SystemExit(f"--earlier {args.earlier}: not a results file of this script ({exc})")
     results = []
     for k, (e, s) in enumerate(cases, 1):
-        if args.score_only and not (args.work / f"{e}-{s}" / "diagnosis" / "diagnosis.json").is_file():
-            continue
+        if not (args.work / f"{e}-{s}" / "diagnosis" / "diagnosis.json").is_file():
+            if (e, s) in earlier:
+                print(f"[{k}/{len(cases)}] {e} seed {s}: as scored before ({args.earlier})",
+                      file=sys.stderr, flush=True)
+                results.append(earlier[(e, s)])
+                write_json(args.json, results)
+                write_md(results, args.out, args)
+                continue
+            if args.score_only:
+                continue
         print(f"[{k}/{len(cases)}] {e} seed {s}", file=sys.stderr, flush=True)
         results.append(run_case(args.work, e, s, args.diagnose_args.split(), args.current))
         write_json(args.json, results)
