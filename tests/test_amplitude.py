@@ -117,3 +117,10 @@ def test_fourth_start_only_where_the_refits_leave_the_mismatch_unexplained():
                             x0=_x(hs, mu_st=1.4), max_jac=1)
     assert best_s.rmse_fit > 5.0
     assert d._amplitude_start(model, hs, best_s, _x(hs, mu_st=1.4), [0]) is None
+    # ... unless they are tried besides the bound-fraction probes (slider_viscous): searched
+    hv = Hypothesis(START, CANDIDATES["slider_viscous"])
+    valley = CliffValley(name="c_visc", centre=0.03, width=0.004)
+    best_v = fit_hypothesis(valley, hv, [0], x0=_x(hv, c_visc=0.09), max_jac=1)
+    assert best_v.rmse_fit > 5.0
+    res_v = d._amplitude_start(valley, hv, best_v, _x(hv, c_visc=0.09), [0])
+    assert res_v is not None and abs(res_v.values["c_visc"] - 0.03) < 0.004

@@ -15,7 +15,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 import pytest
 
-from szdyn.diagnose.candidates import CALIBRATED, CANDIDATES, primary_std
+from szdyn.diagnose.candidates import CALIBRATED, CANDIDATES, VISCOUS_PROBE_FRACTIONS, primary_std
 from szdyn.diagnose.diagnosis import Diagnosis, probe_additions
 from szdyn.diagnose.engine import apply_sensor_transform, model_speed
 from szdyn.diagnose.fit import Hypothesis, fit_hypothesis, jacobian, linear_step
@@ -611,6 +611,88 @@ def test_stribeck_probes_move_the_peak_out_of_the_calibrated_friction():
     assert sorted({round(h.values(x)["v_st"], 6) for x in starts}) == [0.1, 0.3, 1.0, 2.5]
 
 
+def test_viscous_probes_move_the_drag_out_of_the_calibrated_kinetic_friction():
+    xb = np.full(len(CALIBRATED), 0.03)
+    h = Hypothesis(START, CANDIDATES["slider_viscous"])
+    x_lin = np.r_[xb, 0.0]
+    speed = np.r_[np.full(60, 3.0), np.full(40, -6.0)]            # rad/s, both directions
+    scale = np.r_[np.full(30, 0.5), np.full(70, 1.0)] * 0.02 * 9.80665   # R_bo m_b g (N m), two loads
+    with pytest.raises(ValueError, match="band speed"):
+        Diagnosis._own_starts(h, xb, x_lin)
+    cal = h.values(x_lin)
+    starts = Diagnosis._own_starts(h, xb, x_lin, speed, scale)
+    assert len(starts) == len(VISCOUS_PROBE_FRACTIONS)
+    fractions = []
+    for x in starts:
+        v = h.values(x)
+        # the mean sliding torque over the moving samples is the calibrated one: the drag takes
+        # over what mu_k gives up
+        calibrated = np.mean(scale * cal["mu_k"])
+        assert np.mean(scale * v["mu_k"] + v["c_visc"] * np.abs(speed)) == pytest.approx(calibrated, rel=1e-9)
+        fractions.append(1.0 - v["mu_k"] / cal["mu_k"])
+        # the friction at rest is kept where the fit's bounds on the static excess allow it
+        lo, hi = h.bounds()
+        dmu = math.log((cal["mu_s"] - v["mu_k"]) / (START["mu_s"] - START["mu_k"]))
+        if dmu < hi[4]:
+            assert v["mu_s"] == pytest.approx(cal["mu_s"], rel=1e-9)
+        else:
+            assert v["mu_s"] < cal["mu_s"] and x[4] == pytest.approx(hi[4])
+        assert all(v[k] == pytest.approx(cal[k]) for k in ("k_c", "b_c", "k_imp"))
+    assert fractions == pytest.approx(list(VISCOUS_PROBE_FRACTIONS))
+    # besides its own probes, it keeps the bound-fraction ones (the refit's third and fourth starts)
+    assert [x[-1] for x in Diagnosis._starts(h, xb, x_lin, speed, scale)] == pytest.approx([0.025, 0.05])
+    # without a moving sample there is nothing to trade
+    assert Diagnosis._own_starts(h, xb, x_lin, speed[:0], scale[:0]) == []
+
+
+class _ViscousDrag:
+    """Stand-in for FeatureModel: the residual is the truth's sliding torque minus the model's at
+    the recorded band speeds (truth: mu_k 0.20 plus a drag c_visc 0.004 N m s/rad), and each of
+    two loads sticks (a residual of 10) once the model's torque at its top speed exceeds the
+    truth's there by more than 0.02 N m."""
+
+    speed = np.r_[np.linspace(0.5, 3.2, 50), np.linspace(0.5, 6.3, 50)]
+    scale = np.r_[np.full(50, 0.5), np.full(50, 1.0)] * 0.02 * 9.80665
+
+    def torque(self, mc):
+        return self.scale * mc["mu_k"] + mc.get("c_visc", 0.0) * self.speed
+
+    def residuals(self, points, which):
+        truth = self.torque({"mu_k": 0.20, "c_visc": 0.004})
+        out = []
+        for mc, _ in points:
+            m = self.torque(mc)
+            stick = [10.0 * (m[k] - truth[k] > 0.02) for k in (49, 99)]
+            out.append(np.r_[truth - m, stick])
+        return out
+
+
+def test_viscous_probes_leave_the_calibrated_valley_where_a_drag_on_top_sticks():
+    model, d = _ViscousDrag(), Diagnosis(candidates=["slider_viscous"])
+    d._moving_speed, d._moving_slider_scale = model.speed, model.scale
+    base = Hypothesis(START)
+    truth = model.torque({"mu_k": 0.20, "c_visc": 0.004})
+    # the calibrated base: mu_k carries the mean of the drag (least squares on the torques)
+    mu_cal = float(truth @ model.scale / (model.scale @ model.scale))
+    cal = base.coordinates({**START, "mu_k": mu_cal})
+    (r0,) = model.residuals([base.point(cal)], [0])
+    h = Hypothesis(START, CANDIDATES["slider_viscous"])
+    probes = d._probe(model, h, cal, np.r_[cal, 0.0], [0], own=True)
+    assert len(probes) == len(VISCOUS_PROBE_FRACTIONS)
+    assert all(k == "effect probe moved out of the calibrated base" for k, _, _ in probes)
+    name, x, rss = min(probes, key=lambda t: t[2])
+    assert rss < 0.5 * float(r0 @ r0)
+    # the same drag added on top of the calibrated friction sticks the band and fits worse
+    (r_top,) = model.residuals([h.point(np.r_[cal, x[-1]])], [0])
+    assert float(r_top @ r_top) > float(r0 @ r0)
+    # its bound-fraction probes (kept besides) lie on top of the calibration and stick
+    d._J_base = np.zeros((r0.size, len(CALIBRATED)))    # no linear base correction
+    generic = d._probe(model, h, cal, np.r_[cal, 0.0], [0], own=False)
+    assert [k for k, _, _ in generic[:2]] == ["calibrated + effect amplitude probe"] * 2
+    assert all(r > float(r0 @ r0) for _, _, r in generic)
+    assert d._probe(model, h, cal, np.r_[cal, 0.0], [0])[0][0] == "calibrated + effect amplitude probe"
+
+
 class _StickingBackward:
     """Stand-in for FeatureModel: a forward run whose residual is log(friction) (truth 0.2) and a
     backward run that sticks (no residual change) until the friction exceeds 0.28 (truth 0.3:
@@ -710,6 +792,9 @@ def test_probe_screening_gives_own_probes_a_slot_apart_from_the_best_generic_pro
     # the own-probe candidate leading the ranking does not take the generic slot either
     probing = entries(("S", 0.3, True), ("A", 0.5, False))
     assert {q["id"] for q in probe_additions(probing, [], rule, rss_base=rss_base, n_fit=n_fit)} == {"S", "A"}
+    # a candidate with both kinds of entry (own probes besides the generic ones) is added once
+    probing = entries(("V", 0.5, False), ("V", 0.6, True), ("S", 0.7, True))
+    assert [q["id"] for q in probe_additions(probing, [], rule, rss_base=rss_base, n_fit=n_fit)] == ["V", "S"]
     # already shortlisted: not added twice, and the generic slot does not pass to the runner-up
     probing = entries(("A", 0.5, False), ("B", 0.6, False), ("S", 0.7, True))
     assert probe_additions(probing, ["A", "S"], rule, rss_base=rss_base, n_fit=n_fit) == []

@@ -98,15 +98,21 @@ class Candidate:
         0.4 to 2.8 noise floors on four grid cases, docs/DIAGNOSIS-DESIGN.md, "The force scale").
         Such a parameter is better determined relative to the kinetic friction
         (``primary / mu_k``) and is reported so as well.
-    probes : callable(dict, ndarray) -> list of (dict, dict), optional
+    probes : callable(dict, ndarray, ndarray) -> list of (dict, dict), optional
         For an effect that the calibrated base coefficients absorb wholesale: ``probes(base,
-        speed)`` with ``base`` the calibrated coefficients (``k_c, b_c, k_imp, mu_s, mu_k``) and
-        ``speed`` the measured band speed (rad/s) of the fit recordings' moving samples, returns
-        starts ``(effect values, base values)``: the effect switched on at physical amplitudes
-        together with the base change that takes the same amount back out of what the
-        calibration fitted. Replaces the bound-fraction probes of
-        :meth:`~szdyn.diagnose.diagnosis.Diagnosis._starts`; the best is continued by one
-        Jacobian in the probe screening.
+        speed, slider_scale)`` with ``base`` the calibrated coefficients (``k_c, b_c, k_imp,
+        mu_s, mu_k``), ``speed`` the measured band speed (rad/s) of the fit recordings' moving
+        samples and ``slider_scale`` the slider friction torque per unit friction coefficient
+        at each of them (``R_bo m_b g``, N m; ``m_b`` is the recording's load), returns starts
+        ``(effect values, base values)``: the effect switched on at physical amplitudes together
+        with the base change that takes the same amount back out of what the calibration
+        fitted. The best is continued by one Jacobian in the probe screening, judged apart from
+        the other candidates' probes, and offered to the candidate's refit as a start.
+    probes_only : bool
+        With ``probes``: they replace the bound-fraction probes of
+        :meth:`~szdyn.diagnose.diagnosis.Diagnosis._starts` and the fourth start (default,
+        slider_stribeck). False: they are tried besides them (slider_viscous, whose fourth
+        start named it on seed 20).
     """
 
     id: str
@@ -120,6 +126,7 @@ class Candidate:
     signature: tuple = ()
     force_scaled: bool = False
     probes: Callable | None = None
+    probes_only: bool = True
 
 
 def _lin(name):
@@ -168,7 +175,7 @@ STRIBECK_PROBE_FRACTIONS = (0.25, 0.5)
 STRIBECK_PROBE_SPEEDS = (0.1, 0.3, 1.0, 2.5)
 
 
-def _stribeck_probes(base, speed):
+def _stribeck_probes(base, speed, slider_scale=None):
     """Stribeck peaks moved out of the calibrated slider friction (see ``Candidate.probes``).
 
     A base model calibrated on recordings with a low-speed friction peak raises ``mu_s`` and
@@ -186,6 +193,40 @@ def _stribeck_probes(base, speed):
             mu_k = base["mu_k"] - a * w
             out.append(({"mu_st": a, "v_st": v_st},
                         {**base, "mu_k": mu_k, "mu_s": max(base["mu_s"] - a, mu_k)}))
+    return out
+
+
+#: Viscous drags tried by its probes, as the fraction of the calibrated mean sliding friction
+#: torque that they take over: log-spaced, from a drag hardly above the noise to one carrying
+#: nearly half the friction. On slider_viscous seed 34 (a drag of 12 % of the truth's mean
+#: sliding torque, the calibration's mu_k 48 % high) the fit RMSE of such probes at the calibrated
+#: coefficients was 6.8 noise floors at 0.1 and 0.2, 10.4 at 0.25 and 33 at 0.5, the base 17.2:
+#: Stribeck's fractions (0.25, 0.5) alone missed the valley.
+VISCOUS_PROBE_FRACTIONS = (0.05, 0.1, 0.2, 0.4)
+
+
+def _viscous_probes(base, speed, slider_scale):
+    """Viscous drags moved out of the calibrated kinetic friction (see ``Candidate.probes``).
+
+    A base model calibrated on recordings with a speed-proportional drag raises ``mu_k`` to
+    carry its mean, and the drag added on top then sticks the band (slider_viscous seed 34,
+    missed out of sample: mu_k calibrated 0.422 against the truth's 0.285, its generic probes on
+    top at 2.09 rad/s against the base's 0.117). Each probe hands a fraction ``f`` of the mean
+    sliding friction torque over the moving samples to the drag and lowers ``mu_k`` by as much::
+
+        c_visc <|u_b|> = f mu_k <R_bo m_b g>,   mu_k' = (1 - f) mu_k,
+
+    so the mean sliding torque is the calibrated one. The friction at rest (``mu_s``) is kept:
+    a drag is 0 there.
+    """
+    u = np.abs(np.asarray(speed, dtype=float))
+    s = np.asarray(slider_scale, dtype=float)
+    if u.size == 0 or s.shape != u.shape or not np.mean(u) > 0.0:
+        return []
+    out = []
+    for f in VISCOUS_PROBE_FRACTIONS:
+        c = f * base["mu_k"] * float(np.mean(s)) / float(np.mean(u))
+        out.append(({"c_visc": c}, {**base, "mu_k": (1.0 - f) * base["mu_k"]}))
     return out
 
 
@@ -212,7 +253,7 @@ CANDIDATES: dict[str, Candidate] = {c.id: c for c in (
         _lin("c_visc"), "c_visc", lambda v: v["c_visc"],
         "tau_b += -c_visc * u_b",
         "band-speed-proportional drag: slip grows with held speed (2 pi vs pi) beyond Coulomb",
-        signature=("band_speed",), force_scaled=True),
+        signature=("band_speed",), force_scaled=True, probes=_viscous_probes, probes_only=False),
     Candidate(
         "slider_stribeck", "model",
         (FitParam("mu_st", "1", 0.0, 1.5, 0.1), FitParam("v_st", "rad/s", 0.05, 3.0, 0.2, start=0.5,

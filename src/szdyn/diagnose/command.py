@@ -35,8 +35,9 @@ def _build_parser():
                     "follows most, when it explains at least this share (R^2, 0..1; default 0.3; 1.01: never)")
     ap.add_argument("--no-probe-screen", action="store_true",
                     help="do not evaluate every candidate switched on at finite amplitudes (the best of "
-                    "them, if it beats the calibrated base, is refitted; so is slider_stribeck at its own "
-                    "probes, moved out of the calibrated static friction, if they fit better)")
+                    "them, if it beats the calibrated base, is refitted; so are slider_stribeck and "
+                    "slider_viscous at their own probes, moved out of the calibrated static and kinetic "
+                    "friction, if they fit better)")
     ap.add_argument("--rivals", type=int, default=2,
                     help="when the selected candidate leaves the fit above 2 noise floors, also refit this "
                     "many more of the linear screening (default 2; 0: never)")

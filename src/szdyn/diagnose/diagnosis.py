@@ -14,7 +14,7 @@ Steps (each a module of its own):
 4. screen every candidate of the library linearly, add the candidates whose signature the
    residual follows (:func:`~.selection.nominate`) and the best one switched on at finite
    amplitudes (probe screening, :meth:`Diagnosis._probe`; a candidate with its own probes,
-   slider_stribeck, is judged apart), refit that shortlist nonlinearly, refit the base model
+   slider_stribeck and slider_viscous, is judged apart on them), refit that shortlist nonlinearly, refit the base model
    alone from the best candidate's coefficients (ablation: did the effect help, or only the new
    start?), and select with :class:`~.selection.SelectionRule` (held-out data +
    information criterion; an effect is named only if its refit comes within a few noise floors,
@@ -145,7 +145,8 @@ def probe_additions(probing, shortlist, rule: SelectionRule, *, rss_base: float,
     on its own, so it never takes that slot from the others. A generic entry goes on the
     shortlist when its probe beats the calibrated base by more than the information criterion's
     margin (``rule.indistinguishable`` false); an own-probe entry when its probe fits better than
-    the calibrated base at all. Neither is added when it is on the shortlist already.
+    the calibrated base at all. Neither is added when it is on the shortlist already, and a
+    candidate with both kinds of entry (own probes besides the generic ones) is added once.
 
     Why own probes need no margin: they move an effect out of base coefficients that had absorbed
     it (a Stribeck peak carried by mu_s), keeping the friction at rest and the mean sliding
@@ -182,7 +183,7 @@ def probe_additions(probing, shortlist, rule: SelectionRule, *, rss_base: float,
             better = rss_probe < rss_base
         else:
             better = not rule.indistinguishable(rss_selected=rss_probe, rss_other=rss_base, n_fit=n_fit)
-        if better and top["id"] not in shortlist:
+        if better and top["id"] not in shortlist and all(q["id"] != top["id"] for q in out):
             top["added"] = True
             out.append(top)
     return out
@@ -472,6 +473,7 @@ class Diagnosis:
         self.log = log or (lambda msg: None)
         self.progress = progress
         self._moving_speed = None   # set by each pass: measured band speed where the band moves
+        self._moving_slider_scale = None    # ... and R_bo m_b g (N m) at those samples
         self._refined = {}          # candidate id -> (name, x, rss): probe continued by one Jacobian
         self._base_start = None     # where a pass's calibration starts (None: the nominal coefficients)
         self._steps = phase_steps   # phase-profiled steps of the pass being run (the second look's: more)
@@ -529,7 +531,7 @@ class Diagnosis:
         return sorted(out, key=lambda s: s["rmse_linear"])
 
     @staticmethod
-    def _starts(h: Hypothesis, x_base, x_lin, speed=None) -> list:
+    def _starts(h: Hypothesis, x_base, x_lin, speed=None, slider_scale=None) -> list:
         """Refit starts with the effect switched on at finite amplitudes.
 
         Each amplitude parameter (not a shape parameter) is set, one at a time, to each of
@@ -537,26 +539,27 @@ class Diagnosis:
         and the other effect parameters at the linear step ``x_lin``. Where the calibrated model
         sticks (or slips fully) on a recording, an effect's slope from "off" is zero there and a
         gradient method started at "off" never switches it on; from these points it can.
-        A candidate with its own ``probes`` (an effect the base coefficients absorb wholesale)
-        gives its starts instead, base coefficients included.
+        A candidate whose own ``probes`` replace these (``probes_only``; an effect the base
+        coefficients absorb wholesale) gives its starts instead (:meth:`_own_starts`).
 
         Parameters
         ----------
-        speed : ndarray, optional
-            Measured band speed (rad/s) of the fit recordings' moving samples; required by a
-            candidate with ``probes``.
+        speed, slider_scale : ndarray, optional
+            See :meth:`_own_starts`; required by a candidate with ``probes_only``.
 
         Returns
         -------
         list of ndarray
             Points in ``h``'s fit coordinates.
         """
-        if h.candidate is not None and h.candidate.probes is not None:
-            if speed is None:
-                raise ValueError(f"{h.candidate.id}'s probes need the measured band speed")
-            base = h.values(np.concatenate([x_base, x_lin[h.n_base:]]))
-            base = {k: base[k] for k in ("k_c", "b_c", "k_imp", "mu_s", "mu_k")}
-            return [h.inside(h.coordinates({**b, **e})) for e, b in h.candidate.probes(base, speed)]
+        if h.candidate is not None and h.candidate.probes is not None and h.candidate.probes_only:
+            return Diagnosis._own_starts(h, x_base, x_lin, speed, slider_scale)
+        return Diagnosis._bound_starts(h, x_base, x_lin)
+
+    @staticmethod
+    def _bound_starts(h: Hypothesis, x_base, x_lin) -> list:
+        """The bound-fraction probes of :meth:`_starts` (every candidate has them; list of
+        ndarray in ``h``'s fit coordinates)."""
         lo, hi = h.bounds()
         out = []
         for j in h.amplitude_indices():
@@ -568,28 +571,62 @@ class Diagnosis:
                         out.append(x)
         return out
 
-    def _probe(self, model, h: Hypothesis, x_base, x_lin, fit_idx) -> list:
+    @staticmethod
+    def _own_starts(h: Hypothesis, x_base, x_lin, speed=None, slider_scale=None) -> list:
+        """The candidate's own probes (``Candidate.probes``): the effect moved out of the base
+        coefficients at ``x_base`` (the other effect parameters at the linear step ``x_lin``).
+
+        Parameters
+        ----------
+        speed : ndarray, shape (n,)
+            Measured band speed (rad/s) of the fit recordings' moving samples.
+        slider_scale : ndarray, shape (n,), optional
+            ``R_bo m_b g`` (N m) at each of those samples (probes that trade a torque against a
+            friction coefficient need it).
+
+        Returns
+        -------
+        list of ndarray
+            Points in ``h``'s fit coordinates (none for a candidate without probes).
+        """
+        if h.candidate is None or h.candidate.probes is None:
+            return []
+        if speed is None:
+            raise ValueError(f"{h.candidate.id}'s probes need the measured band speed")
+        base = h.values(np.concatenate([x_base, x_lin[h.n_base:]]))
+        base = {k: base[k] for k in ("k_c", "b_c", "k_imp", "mu_s", "mu_k")}
+        return [h.inside(h.coordinates({**b, **e})) for e, b in h.candidate.probes(base, speed, slider_scale)]
+
+    def _probe(self, model, h: Hypothesis, x_base, x_lin, fit_idx, *, own: bool | None = None) -> list:
         """The amplitude probes of :meth:`_starts` as they are and with the base coefficients
         corrected linearly, evaluated on the fit recordings.
 
         The calibration compensated for the missing effect on the recordings where the effect is
         small; switching it on must undo that compensation (e.g. mu_k for an asymmetry), which
         the base Jacobian of the screening (``_J_base``) does to first order: bounded least
-        squares of that point's residual on the base columns. (Not for a candidate with its own
+        squares of that point's residual on the base columns. (Not for the candidate's own
         ``probes``, which carry their base change.)
+
+        Parameters
+        ----------
+        own : bool, optional
+            True: the candidate's own probes (:meth:`_own_starts`); False: the bound-fraction
+            ones (:meth:`_bound_starts`); None (default): those of :meth:`_starts`.
 
         Returns
         -------
         list of (str, ndarray, float)
             Name of the start, the point (fit coordinates), fit RSS ((rad/s)^2).
         """
-        probes = self._starts(h, x_base, x_lin, self._moving_speed)
+        if own is None:
+            own = h.candidate.probes is not None and h.candidate.probes_only
+        probes = self._own_starts(h, x_base, x_lin, self._moving_speed, self._moving_slider_scale) \
+            if own else self._bound_starts(h, x_base, x_lin)
         if not probes:
             return []
         lo, hi = h.bounds()
         nb = h.n_base
         out, corrected = [], []
-        own = h.candidate.probes is not None
         for x, r in zip(probes, model.residuals([h.point(x) for x in probes], fit_idx)):
             out.append(("effect probe moved out of the calibrated base" if own
                         else "calibrated + effect amplitude probe", x, float(r @ r)))
@@ -622,7 +659,8 @@ class Diagnosis:
         ndarray or None
             Start in ``h``'s fit coordinates.
         """
-        probes = self._starts(h, np.asarray(x_nom)[:h.n_base], x_nom, self._moving_speed)
+        probes = self._starts(h, np.asarray(x_nom)[:h.n_base], x_nom, self._moving_speed,
+                              self._moving_slider_scale)
         if not probes:
             return None
         R = model.residuals([h.point(x) for x in [x_nom] + probes], fit_idx)
@@ -636,7 +674,7 @@ class Diagnosis:
 
         Only while the best refit so far (``best``, a FitResult) leaves more than
         ``rule.max_remaining`` noise floors (it does not explain the mismatch), and not for a
-        candidate with its own probes. Near the full-slip cliff the effect's valley at the
+        candidate whose own probes replace the others (``probes_only``). Near the full-slip cliff the effect's valley at the
         uncalibrated coefficients can be narrow and far from where the refits ended (load_lift
         seed 20: 0.052 rad/s within 0.01 N m of tau_lift 0.09, the refits at 0.178 N m and 28x
         the floor; :mod:`.amplitude`). The caller adopts it only if it ends better: a start that
@@ -647,7 +685,7 @@ class Diagnosis:
         FitResult or None
             The refit from the searched start; None when not tried.
         """
-        if h.candidate is None or h.candidate.probes is not None \
+        if h.candidate is None or (h.candidate.probes is not None and h.candidate.probes_only) \
                 or best.rmse_fit <= self.rule.max_remaining * self.floor_:
             return None
         x4, _, n_ev = amplitude_search(model, h, x_nom, fit_idx)
@@ -1139,8 +1177,12 @@ class Diagnosis:
         start = {k: p0[k] for k in ("k_c", "b_c", "k_imp", "mu_s", "mu_k")}
         # the band speeds a candidate's own probes average over: where the band slides (beyond
         # the slider law's static band, 1.5 gamma), on the fit recordings only
-        self._moving_speed = np.concatenate([recs[i].y[np.abs(recs[i].y) > 1.5 * recs[i].params["gamma"]]
-                                             for i in fit_idx])
+        moving = {i: np.abs(recs[i].y) > 1.5 * recs[i].params["gamma"] for i in fit_idx}
+        self._moving_speed = np.concatenate([recs[i].y[moving[i]] for i in fit_idx])
+        # the slider torque per unit friction coefficient there (the load sets m_b per recording)
+        self._moving_slider_scale = np.concatenate(
+            [np.full(int(moving[i].sum()), recs[i].params["R_bo"] * recs[i].params["m_b"] * recs[i].params["g"])
+             for i in fit_idx])
         self._refined = {}
         with FeatureModel(recs, workers=self.workers, progress=self.progress, cache=self._runs,
                           on_runs=None if self.checkpoint is None else self.checkpoint.save) as model:
@@ -1284,10 +1326,16 @@ class Diagnosis:
                 for c in self._library():
                     h = Hypothesis(start, c)
                     x_lin = np.array(screened[c.id]["x_start"])
-                    pr = self._probe(model, h, cal.x, x_lin, fit_idx)
-                    if pr:
+                    # the bound-fraction probes, and the candidate's own ones as an entry apart
+                    # (both for one whose own probes do not replace the others: slider_viscous)
+                    kinds = ([] if c.probes is not None and c.probes_only else [False]) \
+                        + ([True] if c.probes is not None else [])
+                    for own in kinds:
+                        pr = self._probe(model, h, cal.x, x_lin, fit_idx, own=own)
+                        if not pr:
+                            continue
                         best = min(pr, key=lambda t: t[2])
-                        if c.probes is not None:
+                        if own:
                             # an effect the calibration absorbed: its best probe only leaves the
                             # calibrated valley; one Jacobian from there shows whether it leads
                             # anywhere (slider_stribeck seed 17: probe 2.46, calibrated 2.36,
@@ -1298,7 +1346,7 @@ class Diagnosis:
                             self._refined[c.id] = best
                         self.probing_.append({"id": c.id, "rmse_probe": math.sqrt(best[2] / cal.n_fit),
                                               "rmse_base": cal.rmse_fit, "start": best[0],
-                                              "own_probes": c.probes is not None})
+                                              "own_probes": own})
                 self.probing_.sort(key=lambda q: q["rmse_probe"])
                 for top in probe_additions(self.probing_, short, self.rule, rss_base=cal.rss_fit,
                                            n_fit=cal.n_fit):

@@ -137,13 +137,14 @@ def _probing_md(d) -> str:
     top = d.probing_[0]
     fr = " and ".join(f"{f:g}" for f in AMPLITUDE_PROBES)
     own = [q["id"] for q in d.probing_ if q.get("own_probes")]
-    added = [q["id"] for q in d.probing_ if q.get("added")]
+    added = list(dict.fromkeys(q["id"] for q in d.probing_ if q.get("added")))
     return (f"Probe screening (each candidate switched on at {fr} of its bounds, base coefficients "
             "as calibrated or corrected linearly; model runs"
-            + (f"; {', '.join(f'`{k}`' for k in own)} at its own probes, moved out of the calibrated "
-               "base coefficients and continued by one Jacobian, judged apart from the others"
-               if own else "")
-            + "): best " + ", ".join(f"`{q['id']}` {_f(q['rmse_probe'])}" for q in d.probing_[:3])
+            + (f"; {', '.join(f'`{k}`' for k in own)} at {'its' if len(own) == 1 else 'their'} own "
+               "probes, moved out of the calibrated base coefficients and continued by one Jacobian, "
+               "judged apart from the others" if own else "")
+            + "): best " + ", ".join(f"`{q['id']}`{' (own probes)' if q.get('own_probes') else ''} "
+                                     f"{_f(q['rmse_probe'])}" for q in d.probing_[:3])
             + f" rad/s against the calibrated base's {_f(top['rmse_base'])}"
             + (f"; refitted for it: {', '.join(f'`{k}`' for k in added)}." if added else "."))
 
