@@ -190,7 +190,8 @@ def main(argv=None):
     ap.add_argument("--earlier", type=Path, default=None, metavar="JSON",
                     help="raw results (a --json file) of cases scored before, whose work directory is "
                          "gone: each case of this grid that --work has not finished is taken from it "
-                         "as it was scored then")
+                         "as it was scored then (not checked against --diagnose-args or --current: say "
+                         "in the reading what they were)")
     ap.add_argument("--current", type=float, metavar="KT", default=None,
                     help="the recordings also log the motor current (synth --current KT, N m/A), and "
                          "the manifest gives KT: the diagnosis compares the motor torque too")
@@ -205,10 +206,18 @@ def main(argv=None):
         effect_cases, null_cases = effect_cases[k:], null_cases[1:]
     earlier = {}
     if args.earlier is not None:
+        if args.earlier.resolve() == args.json.resolve():
+            # --json is rewritten after every case: reading from it would lose what is not yet merged
+            raise SystemExit(f"--earlier {args.earlier} is also --json; copy it elsewhere first")
+        need = ("effect", "seed", "selected", "verdict", "correct", "heldout_before", "heldout_after")
         try:
-            earlier = {(r["effect"], r["seed"]): r for r in json.loads(args.earlier.read_text())}
+            rows = json.loads(args.earlier.read_text())
+            earlier = {(r["effect"], r["seed"]): r for r in rows}
+            bad = [r for r in rows if any(k not in r for k in need)]
         except (OSError, ValueError, KeyError, TypeError) as exc:
             raise SystemExit(f"--earlier {args.earlier}: not a results file of this script ({exc})")
+        if bad:
+            raise SystemExit(f"--earlier {args.earlier}: a case lacks one of {', '.join(need)}: {bad[0]}")
     results = []
     for k, (e, s) in enumerate(cases, 1):
         if not (args.work / f"{e}-{s}" / "diagnosis" / "diagnosis.json").is_file():

@@ -107,7 +107,8 @@ class Candidate:
         ``(effect values, base values)``: the effect switched on at physical amplitudes together
         with the base change that takes the same amount back out of what the calibration
         fitted. The best is continued by one Jacobian in the probe screening, judged apart from
-        the other candidates' probes, and offered to the candidate's refit as a start.
+        the other candidates' probes, and (when the probe screening runs) offered to the
+        candidate's refit as a start.
     probes_only : bool
         With ``probes``: they replace the bound-fraction probes of
         :meth:`~szdyn.diagnose.diagnosis.Diagnosis._starts` and the fourth start (default,
@@ -216,13 +217,18 @@ def _viscous_probes(base, speed, slider_scale):
 
         c_visc <|u_b|> = f mu_k <R_bo m_b g>,   mu_k' = (1 - f) mu_k,
 
-    so the mean sliding torque is the calibrated one. The friction at rest (``mu_s``) is kept:
-    a drag is 0 there.
+    so the mean sliding torque is the calibrated one. The friction at rest (``mu_s``) is kept (a
+    drag is 0 there) where the fit's bounds allow: the caller clips every start to them, which
+    can lower ``mu_s`` at the larger fractions (its excess over ``mu_k`` is bounded).
     """
+    if slider_scale is None:
+        raise ValueError("slider_viscous's probes need R_bo m_b g at the moving samples (slider_scale)")
     u = np.abs(np.asarray(speed, dtype=float))
     s = np.asarray(slider_scale, dtype=float)
-    if u.size == 0 or s.shape != u.shape or not np.mean(u) > 0.0:
-        return []
+    if s.shape != u.shape:
+        raise ValueError(f"slider_viscous's probes: slider_scale has shape {s.shape}, the speed {u.shape}")
+    if u.size == 0 or not np.mean(u) > 0.0:
+        return []     # no moving sample: nothing to trade
     out = []
     for f in VISCOUS_PROBE_FRACTIONS:
         c = f * base["mu_k"] * float(np.mean(s)) / float(np.mean(u))

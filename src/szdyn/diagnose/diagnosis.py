@@ -140,9 +140,10 @@ def phases_on(model, which) -> dict:
 def probe_additions(probing, shortlist, rule: SelectionRule, *, rss_base: float, n_fit: int) -> list:
     """Entries of the probe screening that go on the refit shortlist.
 
-    The best probe among the candidates without probes of their own takes one slot; every
-    candidate with its own probes (``own_probes``: moved out of the calibrated base) is judged
-    on its own, so it never takes that slot from the others. A generic entry goes on the
+    The best generic entry (bound-fraction probes, also those of a candidate whose own probes
+    are tried besides them) takes one slot; every entry of a candidate's own probes
+    (``own_probes``: moved out of the calibrated base) is judged on its own, so it never takes
+    that slot from the others. A generic entry goes on the
     shortlist when its probe beats the calibrated base by more than the information criterion's
     margin (``rule.indistinguishable`` false); an own-probe entry when its probe fits better than
     the calibrated base at all. Neither is added when it is on the shortlist already, and a
@@ -339,9 +340,10 @@ class Diagnosis:
         ``ids``: candidates refitted because their signature holds that feature;
         ``added``: those of them the linear screening had not shortlisted.
     probing_ : list of dict
-        Per candidate with amplitude probes: ``rmse_probe`` (fit RMSE of its best probe, rad/s),
-        which kind of probe it was (``start``), ``own_probes`` (the candidate's own, judged apart)
-        and ``added`` (present, True, when the probe screening put it on the shortlist), sorted
+        Per candidate and kind of probe (a candidate whose own probes are tried besides the
+        bound-fraction ones, slider_viscous, has two entries, told apart by ``own_probes``):
+        ``rmse_probe`` (fit RMSE of its best probe, rad/s), which probe it was (``start``),
+        ``own_probes`` (the candidate's own, judged apart) and ``added`` (present, True, when the probe screening put it on the shortlist), sorted
         by that RMSE (empty when nothing is missing).
     refits_ : dict of str -> dict
         Per refitted candidate: ``result`` (FitResult), ``heldout_rmse``, scores.
@@ -593,6 +595,9 @@ class Diagnosis:
             return []
         if speed is None:
             raise ValueError(f"{h.candidate.id}'s probes need the measured band speed")
+        if slider_scale is not None and np.shape(slider_scale) != np.shape(speed):
+            raise ValueError(f"{h.candidate.id}'s probes: slider_scale has shape {np.shape(slider_scale)}, "
+                             f"the band speed {np.shape(speed)}")
         base = h.values(np.concatenate([x_base, x_lin[h.n_base:]]))
         base = {k: base[k] for k in ("k_c", "b_c", "k_imp", "mu_s", "mu_k")}
         return [h.inside(h.coordinates({**b, **e})) for e, b in h.candidate.probes(base, speed, slider_scale)]
