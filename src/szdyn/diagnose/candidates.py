@@ -129,6 +129,11 @@ class Candidate:
     probes: Callable | None = None
     probes_only: bool = True
 
+    @property
+    def own_probes_replace(self) -> bool:
+        """Its own ``probes`` replace the bound-fraction probes and the fourth start."""
+        return self.probes is not None and self.probes_only
+
 
 def _lin(name):
     # 0 is "off": return no change at all, so the point is the base model's run (cache hit)
@@ -224,9 +229,7 @@ def _viscous_probes(base, speed, slider_scale):
     if slider_scale is None:
         raise ValueError("slider_viscous's probes need R_bo m_b g at the moving samples (slider_scale)")
     u = np.abs(np.asarray(speed, dtype=float))
-    s = np.asarray(slider_scale, dtype=float)
-    if s.shape != u.shape:
-        raise ValueError(f"slider_viscous's probes: slider_scale has shape {s.shape}, the speed {u.shape}")
+    s = np.asarray(slider_scale, dtype=float)     # its shape is checked by the caller (_own_starts)
     if u.size == 0 or not np.mean(u) > 0.0:
         return []     # no moving sample: nothing to trade
     out = []

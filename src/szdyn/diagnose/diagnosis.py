@@ -14,12 +14,13 @@ Steps (each a module of its own):
 4. screen every candidate of the library linearly, add the candidates whose signature the
    residual follows (:func:`~.selection.nominate`) and the best one switched on at finite
    amplitudes (probe screening, :meth:`Diagnosis._probe`; a candidate with its own probes,
-   slider_stribeck and slider_viscous, is judged apart on them), refit that shortlist nonlinearly, refit the base model
-   alone from the best candidate's coefficients (ablation: did the effect help, or only the new
-   start?), and select with :class:`~.selection.SelectionRule` (held-out data +
-   information criterion; an effect is named only if its refit comes within a few noise floors,
-   :func:`~.selection.decide`), after refitting the next screened candidates too when the
-   provisional winner leaves the fit above two floors (:func:`~.selection.rivals`);
+   slider_stribeck and slider_viscous, is judged apart on them), refit that shortlist
+   nonlinearly, refit the base model alone from the best candidate's coefficients (ablation:
+   did the effect help, or only the new start?), and select with
+   :class:`~.selection.SelectionRule` (held-out data + information criterion; an effect is
+   named only if its refit comes within a few noise floors, :func:`~.selection.decide`),
+   after refitting the next screened candidates too when the provisional winner leaves the
+   fit above two floors (:func:`~.selection.rivals`);
 5. keep the refitted model of the selected effect as the updated model;
 6. if that said "none" or named an effect while a held-out recording is far off, exchange it
    with a similar fit recording and run steps 1-5 again (:mod:`.split`; a named effect stands
@@ -343,8 +344,9 @@ class Diagnosis:
         Per candidate and kind of probe (a candidate whose own probes are tried besides the
         bound-fraction ones, slider_viscous, has two entries, told apart by ``own_probes``):
         ``rmse_probe`` (fit RMSE of its best probe, rad/s), which probe it was (``start``),
-        ``own_probes`` (the candidate's own, judged apart) and ``added`` (present, True, when the probe screening put it on the shortlist), sorted
-        by that RMSE (empty when nothing is missing).
+        ``own_probes`` (the candidate's own, judged apart) and ``added`` (present, True, when the
+        probe screening put it on the shortlist), sorted by that RMSE (empty when nothing is
+        missing).
     refits_ : dict of str -> dict
         Per refitted candidate: ``result`` (FitResult), ``heldout_rmse``, scores.
     rivals_ : list of str
@@ -541,20 +543,20 @@ class Diagnosis:
         and the other effect parameters at the linear step ``x_lin``. Where the calibrated model
         sticks (or slips fully) on a recording, an effect's slope from "off" is zero there and a
         gradient method started at "off" never switches it on; from these points it can.
-        A candidate whose own ``probes`` replace these (``probes_only``; an effect the base
+        A candidate whose own ``probes`` replace these (``own_probes_replace``; an effect the base
         coefficients absorb wholesale) gives its starts instead (:meth:`_own_starts`).
 
         Parameters
         ----------
         speed, slider_scale : ndarray, optional
-            See :meth:`_own_starts`; required by a candidate with ``probes_only``.
+            See :meth:`_own_starts`; required by a candidate with ``own_probes_replace``.
 
         Returns
         -------
         list of ndarray
             Points in ``h``'s fit coordinates.
         """
-        if h.candidate is not None and h.candidate.probes is not None and h.candidate.probes_only:
+        if h.candidate is not None and h.candidate.own_probes_replace:
             return Diagnosis._own_starts(h, x_base, x_lin, speed, slider_scale)
         return Diagnosis._bound_starts(h, x_base, x_lin)
 
@@ -624,7 +626,7 @@ class Diagnosis:
             Name of the start, the point (fit coordinates), fit RSS ((rad/s)^2).
         """
         if own is None:
-            own = h.candidate.probes is not None and h.candidate.probes_only
+            own = h.candidate.own_probes_replace
         probes = self._own_starts(h, x_base, x_lin, self._moving_speed, self._moving_slider_scale) \
             if own else self._bound_starts(h, x_base, x_lin)
         if not probes:
@@ -679,18 +681,19 @@ class Diagnosis:
 
         Only while the best refit so far (``best``, a FitResult) leaves more than
         ``rule.max_remaining`` noise floors (it does not explain the mismatch), and not for a
-        candidate whose own probes replace the others (``probes_only``). Near the full-slip cliff the effect's valley at the
-        uncalibrated coefficients can be narrow and far from where the refits ended (load_lift
-        seed 20: 0.052 rad/s within 0.01 N m of tau_lift 0.09, the refits at 0.178 N m and 28x
-        the floor; :mod:`.amplitude`). The caller adopts it only if it ends better: a start that
-        fits better need not end better (friction_asymmetry seed 11).
+        candidate whose own probes replace the others (``own_probes_replace``). Near the
+        full-slip cliff the effect's valley at the uncalibrated coefficients can be narrow and far
+        from where the refits ended (load_lift seed 20: 0.052 rad/s within 0.01 N m of tau_lift
+        0.09, the refits at 0.178 N m and 28x the floor; :mod:`.amplitude`). The caller adopts
+        it only if it ends better: a start that fits better need not end better
+        (friction_asymmetry seed 11).
 
         Returns
         -------
         FitResult or None
             The refit from the searched start; None when not tried.
         """
-        if h.candidate is None or (h.candidate.probes is not None and h.candidate.probes_only) \
+        if h.candidate is None or h.candidate.own_probes_replace \
                 or best.rmse_fit <= self.rule.max_remaining * self.floor_:
             return None
         x4, _, n_ev = amplitude_search(model, h, x_nom, fit_idx)
@@ -1333,7 +1336,7 @@ class Diagnosis:
                     x_lin = np.array(screened[c.id]["x_start"])
                     # the bound-fraction probes, and the candidate's own ones as an entry apart
                     # (both for one whose own probes do not replace the others: slider_viscous)
-                    kinds = ([] if c.probes is not None and c.probes_only else [False]) \
+                    kinds = ([] if c.own_probes_replace else [False]) \
                         + ([True] if c.probes is not None else [])
                     for own in kinds:
                         pr = self._probe(model, h, cal.x, x_lin, fit_idx, own=own)
