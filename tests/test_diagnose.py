@@ -1251,6 +1251,9 @@ def test_starts_skipped_for_a_settler_are_made_once_it_settles_nothing(viscous, 
         return "phantom" if asked[exclude] == 1 else None
 
     monkeypatch.setattr(diagnosis, "settled", first_look_only)
+    # (no probe addition spared: the small case's, encoder_scale, is the candidate that misses;
+    # sparing is covered by the next tests)
+    monkeypatch.setattr(diagnosis, "SETTLED_SKIPS_PROBED", math.inf)
     man = out.parent / "data" / "manifest.toml"
     assert run_main(["diagnose", str(man), "--out", str(tmp_path / "u"), *SMALL]) == 0
     d = json.loads((tmp_path / "u" / "diagnosis.json").read_text())
@@ -1260,6 +1263,64 @@ def test_starts_skipped_for_a_settler_are_made_once_it_settles_nothing(viscous, 
     assert "refit_unsettled" in d["cost"]["seconds"]
     report = (tmp_path / "u" / "report.md").read_text()
     assert "no further starts" not in report and "phantom" not in report
+    assert d["selected"] == d0["selected"] == ["slider_viscous"]
+
+
+def test_a_probe_addition_is_not_refitted_after_a_settler(viscous, tmp_path, monkeypatch):
+    """The probe screening's additions come last on the shortlist; once a refitted candidate
+    settles the answer explaining at least SETTLED_SKIPS_PROBED of the mismatch, they are not
+    refitted, and the JSON and the report say which and why (the small case: the drag settles,
+    encoder_scale's probe was added). The answer is the same as with the additions refitted
+    (SETTLED_SKIPS_PROBED above any share), with fewer model runs."""
+    from szdyn.diagnose import diagnosis
+
+    _, d0, out = viscous
+    added = list(dict.fromkeys(q["id"] for q in d0["probing"] if q.get("added")))
+    assert added, "the small case's probe screening added nothing: nothing to test"
+    answer = next(e for e in d0["effects"] if e["selected"])
+    assert answer["id"] == "slider_viscous" and answer["score"] >= diagnosis.SETTLED_SKIPS_PROBED
+    assert d0["not_refitted"] == {k: "slider_viscous" for k in added}
+    assert not any(e["refitted"] for e in d0["effects"] if e["id"] in added)
+    report = (out / "report.md").read_text()
+    for k in added:
+        assert f"Not refitted: `{k}`, added by the probe screening after `slider_viscous`" in report
+
+    monkeypatch.setattr(diagnosis, "SETTLED_SKIPS_PROBED", math.inf)
+    man = out.parent / "data" / "manifest.toml"
+    assert run_main(["diagnose", str(man), "--out", str(tmp_path / "all"), *SMALL]) == 0
+    d = json.loads((tmp_path / "all" / "diagnosis.json").read_text())
+    assert d["not_refitted"] == {} and all(e["refitted"] for e in d["effects"] if e["id"] in added)
+    assert "Not refitted" not in (tmp_path / "all" / "report.md").read_text()
+    assert d["selected"] == d0["selected"] and d["fit"] == d0["fit"]
+    assert d0["cost"]["model_runs"] < d["cost"]["model_runs"]
+
+
+def test_a_spared_probe_addition_is_refitted_once_its_settler_settles_nothing(viscous, tmp_path, monkeypatch):
+    """A settler that settles nothing by the decision (the ablation or the held-out phases judged
+    it again): the probe addition it spared is refitted then (5f). Made to happen with a settler
+    that spares the addition at its first look only."""
+    from szdyn.diagnose import diagnosis
+
+    _, d0, out = viscous
+    added = {q["id"] for q in d0["probing"] if q.get("added")}
+    asked = {}
+    real = diagnosis.settled
+
+    def first_look_only(rule, refits, floor, *, exclude=None):
+        if exclude in added:
+            asked[exclude] = asked.get(exclude, 0) + 1
+            if asked[exclude] > 1:
+                return None
+        return real(rule, refits, floor, exclude=exclude)
+
+    monkeypatch.setattr(diagnosis, "settled", first_look_only)
+    man = out.parent / "data" / "manifest.toml"
+    assert run_main(["diagnose", str(man), "--out", str(tmp_path / "f"), *SMALL]) == 0
+    d = json.loads((tmp_path / "f" / "diagnosis.json").read_text())
+    assert added and all(asked.get(k, 0) >= 2 for k in added), "no addition was asked again in 5f"
+    assert d["not_refitted"] == {} and "refit_unsettled" in d["cost"]["seconds"]
+    assert all(e["refitted"] for e in d["effects"] if e["id"] in added)
+    assert "Not refitted" not in (tmp_path / "f" / "report.md").read_text()
     assert d["selected"] == d0["selected"] == ["slider_viscous"]
 
 

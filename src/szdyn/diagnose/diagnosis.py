@@ -131,6 +131,17 @@ STAGED_RATIO = 2.0
 #: look, calibrated from that base (null 41: 4.30x the floor, the ablation 1.88x, then "none").
 SECOND_LOOK_STEPS = 2
 
+#: Share of the mismatch's excess (``explained``) at or above which a candidate that settles the
+#: answer (:func:`~.selection.settled`: eligible, within ``rule.rival_floor`` noise floors) also
+#: spares the probe screening's additions their refit. Those additions rescue an effect that the
+#: calibration absorbed or that the linear screening missed; after such a settler a rescued one
+#: could win by explaining at most the few percent left. On seed 35 (out of sample) the probe
+#: screening added a candidate in 7 of 10 cases and, in all 7, refitted it after the answer had
+#: settled (settlers explaining 92-100 %); none changed the answer. In the issue's cost case the
+#: drag's refit took 91 of 619 s. slider_stribeck 30 was named through its own probes while
+#: explaining 54 %: a settler would have had to explain less than that, below this share.
+SETTLED_SKIPS_PROBED = 0.9
+
 
 def phases_on(model, which) -> dict:
     """Recording index -> initial wheel angle (rad) that ``model.phases`` holds now for the
@@ -347,6 +358,10 @@ class Diagnosis:
         ``own_probes`` (the candidate's own, judged apart) and ``added`` (present, True, when the
         probe screening put it on the shortlist), sorted by that RMSE (empty when nothing is
         missing).
+    not_refitted_ : dict of str -> str
+        Candidates the probe screening added that were not refitted, each with the candidate
+        that settled the answer first, explaining at least :data:`SETTLED_SKIPS_PROBED` of the
+        mismatch (empty when every addition was refitted).
     refits_ : dict of str -> dict
         Per refitted candidate: ``result`` (FitResult), ``heldout_rmse``, scores.
     rivals_ : list of str
@@ -1170,6 +1185,7 @@ class Diagnosis:
         all_idx = fit_idx + held_idx
         self.timings_ = {}
         self.unsettled_ = []
+        self.not_refitted_ = {}
         self.passed_over_ = None
         self.base_torque_, self.final_torque_ = {}, {}
         clock = time.perf_counter()
@@ -1497,8 +1513,30 @@ class Diagnosis:
                     if nxt is not best:
                         assess(cand, h, nxt)
 
+            # the probe screening's additions come last on the shortlist: a settler explaining
+            # nearly all the excess spares them their refit (SETTLED_SKIPS_PROBED); 5f makes it
+            # should the settler settle nothing later
+            probed = {q["id"] for q in self.probing_ if q.get("added")}
+            not_refitted = {}    # candidate -> the candidate that spared it its refit
+
+            def spared_by(cid):
+                """The settler, among the candidates explaining SETTLED_SKIPS_PROBED of the
+                mismatch or more, that spares the probe addition ``cid`` its refit (else None)."""
+                if cid not in probed:
+                    return None
+                strong = {k: v for k, v in fit_summary().items()
+                          if self.refits_[k]["explained"] >= SETTLED_SKIPS_PROBED}
+                return settled(self.rule, strong, self.floor_, exclude=cid) if strong else None
+
             for cid in short:
-                refit(cid)
+                settler = spared_by(cid)
+                if settler is None:
+                    refit(cid)
+                    continue
+                not_refitted[cid] = settler
+                self.log(f"not refitting {cid} (added by the probe screening): {settler} already explains "
+                         f"{self.refits_[settler]['explained']:.0%} of the mismatch within "
+                         f"{self.rule.rival_floor:g} noise floors")
             lap("refit")
 
             # 5b. continue the leading candidate if its budget, not convergence, stopped it; and
@@ -1649,12 +1687,16 @@ class Diagnosis:
             # 5f. the further starts a settler skipped, where it settles nothing any more: the
             # ablation (5d) and the held-out phases (5e) judged every candidate again, and a
             # settler that was only a better valley of the base (what 5d is for) loses its
-            # eligibility there; the candidates it stopped get the starts they were denied
+            # eligibility there; the candidates it stopped get the starts they were denied, and
+            # the probe screening's additions it spared (SETTLED_SKIPS_PROBED) their refit
             redo = [cid for cid in skipped if settled_by(cid) is None] if polish > 0 else []
-            self.unsettled_ = redo
-            if redo:
-                self.log(f"{', '.join(sorted({skipped[c] for c in redo}))} no longer settles the answer: "
-                         f"the further starts of {', '.join(redo)}")
+            fresh = [cid for cid in not_refitted if cid not in self.refits_ and spared_by(cid) is None]
+            self.unsettled_ = redo + fresh
+            if self.unsettled_:
+                was = {skipped[c] for c in redo} | {not_refitted[c] for c in fresh}
+                self.log(f"{', '.join(sorted(was))} no longer settles the answer: "
+                         + "; ".join(([f"the further starts of {', '.join(redo)}"] if redo else [])
+                                     + ([f"refitting {', '.join(fresh)}"] if fresh else [])))
                 with_held(held_phases.get(None, {}))      # the base's phases, as the refits had
                 for cid in redo:
                     prev = self.refits_[cid]
@@ -1664,12 +1706,17 @@ class Diagnosis:
                     # (a first start that was continued (5b) can be better than all of them)
                     if prev["result"].rss_fit < self.refits_[cid]["result"].rss_fit:
                         self.refits_[cid] = prev
+                for cid in fresh:
+                    del not_refitted[cid]
+                    refit(cid)
                 if held_phases:
-                    for cid in redo:
+                    for cid in self.unsettled_:
                         r = self.refits_[cid]["result"]
                         held_phases[cid] = rephase(r.hypothesis.point(r.x))
                     judge_with_held_phases()
                 lap("refit_unsettled")
+            # (a spared addition that the rivals' step (5c) refitted after all is not spared)
+            self.not_refitted_ = {k: v for k, v in not_refitted.items() if k not in self.refits_}
 
             # 6. decide
             dec = decision()

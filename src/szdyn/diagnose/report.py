@@ -137,7 +137,10 @@ def _probing_md(d) -> str:
     top = d.probing_[0]
     fr = " and ".join(f"{f:g}" for f in AMPLITUDE_PROBES)
     own = [q["id"] for q in d.probing_ if q.get("own_probes")]
-    added = list(dict.fromkeys(q["id"] for q in d.probing_ if q.get("added")))
+    added = [k for k in dict.fromkeys(q["id"] for q in d.probing_ if q.get("added")) if k not in d.not_refitted_]
+    spared = "".join(f" Not refitted: `{k}`, added by the probe screening after `{v}` had explained "
+                     f"{d.refits_[v]['explained']:.0%} of the mismatch within {d.rule.rival_floor:g} noise floors."
+                     for k, v in d.not_refitted_.items())
     return (f"Probe screening (each candidate switched on at {fr} of its bounds, base coefficients "
             "as calibrated or corrected linearly; model runs"
             + (f"; {', '.join(f'`{k}`' for k in own)} at {'its' if len(own) == 1 else 'their'} own "
@@ -146,7 +149,7 @@ def _probing_md(d) -> str:
             + "): best " + ", ".join(f"`{q['id']}`{' (own probes)' if q.get('own_probes') else ''} "
                                      f"{_f(q['rmse_probe'])}" for q in d.probing_[:3])
             + f" rad/s against the calibrated base's {_f(top['rmse_base'])}"
-            + (f"; refitted for it: {', '.join(f'`{k}`' for k in added)}." if added else "."))
+            + (f"; refitted for it: {', '.join(f'`{k}`' for k in added)}." if added else ".") + spared)
 
 
 def _detectable_md(d, js) -> list:
@@ -264,6 +267,7 @@ def _to_json(d) -> dict:
         "nominated": d.nominated_,
         "rivals": list(d.rivals_),
         "probing": d.probing_,
+        "not_refitted": d.not_refitted_,
         "recordings": [{"name": r.name, "role": r.role, "load_kg": r.load_kg,
                         "t0": r.t0, "t1": r.t1, "samples": len(r.rec)} for r in d.recordings_],
         "compared": COMPARED,
