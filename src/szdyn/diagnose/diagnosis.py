@@ -137,9 +137,11 @@ SECOND_LOOK_STEPS = 2
 #: calibration absorbed or that the linear screening missed; after such a settler a rescued one
 #: could win by explaining at most the few percent left. On seed 35 (out of sample) the probe
 #: screening added a candidate in 7 of 10 cases and, in all 7, refitted it after the answer had
-#: settled (settlers explaining 92-100 %); none changed the answer. In the issue's cost case the
-#: drag's refit took 91 of 619 s. slider_stribeck 30 was named through its own probes while
-#: explaining 54 %: a settler would have had to explain less than that, below this share.
+#: settled (the settlers' final shares 92-100 %); none changed the answer. The issue's cost case
+#: (load_lift seed 31) took 640 s from 839 model runs with the drag's refit, 547 s from 756
+#: without it, with the same answer and numbers (2026-12-02, the same idle machine).
+#: slider_stribeck 30 was named through its own probes while explaining 54 %: a settler would
+#: have had to explain less than that, below this share.
 SETTLED_SKIPS_PROBED = 0.9
 
 
