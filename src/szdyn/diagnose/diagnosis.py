@@ -221,7 +221,9 @@ class Diagnosis:
     probe_screen : bool
         Also evaluate every candidate switched on at finite amplitudes (:meth:`_probe`: model
         runs, not a linearisation) and refit the best if it fits better than the calibrated base
-        by more than ``rule.min_dbic`` in the information criterion.
+        by more than ``rule.min_dbic`` in the information criterion (a candidate's own probes:
+        if it fits better at all; :func:`probe_additions`), unless a candidate refitted before
+        settles the answer explaining :data:`SETTLED_SKIPS_PROBED` of the mismatch or more.
     max_jac : int
         Jacobians per nonlinear fit (calibration: twice this).
     polish_jac : int, optional
@@ -360,10 +362,14 @@ class Diagnosis:
         ``own_probes`` (the candidate's own, judged apart) and ``added`` (present, True, when the
         probe screening put it on the shortlist), sorted by that RMSE (empty when nothing is
         missing).
-    not_refitted_ : dict of str -> str
-        Candidates the probe screening added that were not refitted, each with the candidate
-        that settled the answer first, explaining at least :data:`SETTLED_SKIPS_PROBED` of the
-        mismatch (empty when every addition was refitted).
+    not_refitted_ : dict of str -> dict
+        Candidates the probe screening added that were not refitted, each with ``by`` (the
+        candidate that settled the answer, explaining at least :data:`SETTLED_SKIPS_PROBED` of
+        the mismatch) and ``explained`` (that share when it spared the addition; empty when
+        every addition was refitted).
+    unsettled_ : list of str
+        Candidates refitted in step 5f: those whose further starts a settler had skipped and
+        the probe additions it had spared, where it settles nothing any more.
     refits_ : dict of str -> dict
         Per refitted candidate: ``result`` (FitResult), ``heldout_rmse``, scores.
     rivals_ : list of str
@@ -1519,7 +1525,7 @@ class Diagnosis:
             # nearly all the excess spares them their refit (SETTLED_SKIPS_PROBED); 5f makes it
             # should the settler settle nothing later
             probed = {q["id"] for q in self.probing_ if q.get("added")}
-            not_refitted = {}    # candidate -> the candidate that spared it its refit
+            not_refitted = {}    # candidate -> {"by": the settler that spared it, "explained": its share then}
 
             def spared_by(cid):
                 """The settler, among the candidates explaining SETTLED_SKIPS_PROBED of the
@@ -1535,9 +1541,9 @@ class Diagnosis:
                 if settler is None:
                     refit(cid)
                     continue
-                not_refitted[cid] = settler
+                not_refitted[cid] = {"by": settler, "explained": self.refits_[settler]["explained"]}
                 self.log(f"not refitting {cid} (added by the probe screening): {settler} already explains "
-                         f"{self.refits_[settler]['explained']:.0%} of the mismatch within "
+                         f"{self.refits_[settler]['explained']:.1%} of the mismatch within "
                          f"{self.rule.rival_floor:g} noise floors")
             lap("refit")
 
@@ -1689,16 +1695,15 @@ class Diagnosis:
             # 5f. the further starts a settler skipped, where it settles nothing any more: the
             # ablation (5d) and the held-out phases (5e) judged every candidate again, and a
             # settler that was only a better valley of the base (what 5d is for) loses its
-            # eligibility there; the candidates it stopped get the starts they were denied, and
-            # the probe screening's additions it spared (SETTLED_SKIPS_PROBED) their refit
+            # eligibility there; the candidates it stopped get the starts they were denied. Then
+            # the probe screening's additions that no candidate spares any more (judged after
+            # those starts, which can take a settler's eligibility too) get their refit. Neither
+            # is continued (5b) nor meets the ablation (5d) afterwards.
             redo = [cid for cid in skipped if settled_by(cid) is None] if polish > 0 else []
-            fresh = [cid for cid in not_refitted if cid not in self.refits_ and spared_by(cid) is None]
-            self.unsettled_ = redo + fresh
-            if self.unsettled_:
-                was = {skipped[c] for c in redo} | {not_refitted[c] for c in fresh}
-                self.log(f"{', '.join(sorted(was))} no longer settles the answer: "
-                         + "; ".join(([f"the further starts of {', '.join(redo)}"] if redo else [])
-                                     + ([f"refitting {', '.join(fresh)}"] if fresh else [])))
+            self.unsettled_ = list(redo)
+            if redo:
+                self.log(f"{', '.join(sorted({skipped[c] for c in redo}))} no longer settles the answer: "
+                         f"the further starts of {', '.join(redo)}")
                 with_held(held_phases.get(None, {}))      # the base's phases, as the refits had
                 for cid in redo:
                     prev = self.refits_[cid]
@@ -1708,14 +1713,32 @@ class Diagnosis:
                     # (a first start that was continued (5b) can be better than all of them)
                     if prev["result"].rss_fit < self.refits_[cid]["result"].rss_fit:
                         self.refits_[cid] = prev
+                if held_phases:
+                    for cid in redo:
+                        r = self.refits_[cid]["result"]
+                        held_phases[cid] = rephase(r.hypothesis.point(r.x))
+                    judge_with_held_phases()
+            fresh = []
+            for cid in [c for c in not_refitted if c not in self.refits_]:
+                settler = spared_by(cid) if self.mismatch_ else None
+                if settler is not None:      # (another settler may spare it now)
+                    not_refitted[cid] = {"by": settler, "explained": self.refits_[settler]["explained"]}
+                elif self.mismatch_:
+                    fresh.append(cid)
+            if fresh:
+                self.log(f"the probe screening's {', '.join(fresh)}: no candidate explaining "
+                         f"{SETTLED_SKIPS_PROBED:.0%} of the mismatch settles the answer now: refitting")
+                with_held(held_phases.get(None, {}))
                 for cid in fresh:
                     del not_refitted[cid]
                     refit(cid)
                 if held_phases:
-                    for cid in self.unsettled_:
+                    for cid in fresh:
                         r = self.refits_[cid]["result"]
                         held_phases[cid] = rephase(r.hypothesis.point(r.x))
                     judge_with_held_phases()
+                self.unsettled_ += fresh
+            if self.unsettled_:
                 lap("refit_unsettled")
             # (a spared addition that the rivals' step (5c) refitted after all is not spared)
             self.not_refitted_ = {k: v for k, v in not_refitted.items() if k not in self.refits_}

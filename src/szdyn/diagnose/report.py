@@ -138,8 +138,8 @@ def _probing_md(d) -> str:
     fr = " and ".join(f"{f:g}" for f in AMPLITUDE_PROBES)
     own = [q["id"] for q in d.probing_ if q.get("own_probes")]
     added = [k for k in dict.fromkeys(q["id"] for q in d.probing_ if q.get("added")) if k not in d.not_refitted_]
-    spared = "".join(f" Not refitted: `{k}`, added by the probe screening after `{v}` had explained "
-                     f"{d.refits_[v]['explained']:.0%} of the mismatch within {d.rule.rival_floor:g} noise floors."
+    spared = "".join(f" Not refitted: `{k}`, added by the probe screening after `{v['by']}` had explained "
+                     f"{v['explained']:.1%} of the mismatch's excess within {d.rule.rival_floor:g} noise floors."
                      for k, v in d.not_refitted_.items())
     return (f"Probe screening (each candidate switched on at {fr} of its bounds, base coefficients "
             "as calibrated or corrected linearly; model runs"
