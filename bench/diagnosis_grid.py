@@ -30,6 +30,19 @@ from szdyn.synth import EFFECTS  # noqa: E402
 from szdyn.diagnose.candidates import CANDIDATES, primary_std  # noqa: E402
 
 
+#: The primary parameter's value without the effect, where it is not 0. The error is relative to
+#: the effect, the primary's deviation from this value: encoder_scale's primary is the gain
+#: 1 + A, and relative to the gain a scale error A = 0.02 fitted as 0.03 would be 1 % off, not 50 %.
+NEUTRAL = {"encoder_scale": 1.0}
+
+
+def param_error(effect: str, truth: float, fitted: float) -> float:
+    """Relative error of the effect's fitted primary parameter against the truth's, measured from
+    the value without the effect (:data:`NEUTRAL`, else 0)."""
+    n = NEUTRAL.get(effect, 0.0)
+    return abs((fitted - n) / (truth - n) - 1.0)
+
+
 def truth_primary(truth: dict, cid: str):
     """The truth value of the effect's primary parameter (as the diagnosis reports it)."""
     prim = CANDIDATES[cid].primary
@@ -76,8 +89,9 @@ def run_case(work: Path, effect: str, seed: int, diag_args, current: float | Non
         e = next((x for x in d["effects"] if x["id"] == effect and x.get("primary")), None)
         res["truth_param"] = tv
         res["fitted_param"] = e["primary"]["value"] if e else None
-        if tv and e and e["primary"]["value"] is not None and math.isfinite(tv) and tv != 0:
-            res["param_error"] = abs(e["primary"]["value"] / tv - 1.0)
+        if tv is not None and e and e["primary"]["value"] is not None and math.isfinite(tv) \
+                and tv != NEUTRAL.get(effect, 0.0):
+            res["param_error"] = param_error(effect, tv, e["primary"]["value"])
             if CANDIDATES[effect].force_scaled and res["correct"]:
                 # the scale-free form (Candidate.force_scaled): relative to mu_k, the refit's
                 # against the truth's (the final model is the selected refit)

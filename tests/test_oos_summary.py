@@ -1,0 +1,52 @@
+"""bench/oos_summary.py: the per-effect out-of-sample standing is counted from the seeds' scored
+results, and the committed twin (docs/diagnosis-oos-summary.json) is the count of the committed
+results (a seed re-scored without regenerating the summary fails here)."""
+import importlib.util
+import json
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _bench():
+    path = ROOT / "bench" / "oos_summary.py"
+    spec = importlib.util.spec_from_file_location("oos_summary", path)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def test_committed_summary_is_the_count_of_the_committed_results():
+    mod = _bench()
+    s = mod.summarize(mod.load())
+    committed = json.loads((ROOT / "docs" / "diagnosis-oos-summary.json").read_text())
+    assert committed == json.loads(json.dumps(s))
+
+
+def test_counts_add_up():
+    mod = _bench()
+    s = mod.summarize(mod.load())
+    rows = s["per_effect"].values()
+    assert s["all"]["cases"] == sum(r["cases"] for r in rows)
+    assert s["all"]["named"] == sum(r["named"] for r in rows)
+    for r in rows:
+        assert len(r["seeds_missed"]) == r["cases"] - r["named"]
+        assert r["param_within_15pct"] <= r["param_known"] <= r["named"]
+        assert r["reachable_3x"] <= r["reachable"] <= r["gain_known"] <= r["named"]
+    # seed 13's earlier format is read like the others: its scored figures (docs/diagnosis-
+    # standing.md, scored by hand when it ran) are 8 of 10 named, 7 of 8 parameters within
+    # 15 %, 6 of 8 held-out gains of 3x or more
+    c13 = [c for c in mod.load() if c["seed"] == 13 and c["effect"] != "none"]
+    named = [c for c in c13 if c["correct"]]
+    assert (len(named), len(c13)) == (8, 10)
+    assert sum(c["param_error"] <= 0.15 for c in named) == 7
+    assert sum(c["heldout_ratio"] >= 3 for c in named) == 6
+
+
+def test_encoder_scale_error_is_that_of_the_scale_error():
+    mod = _bench()
+    # the gain 1.02 fitted as 1.03: the scale error is 50 % off (the gain 1 %)
+    assert mod.param_error("encoder_scale", 1.02, 1.03) == pytest.approx(0.5)
+    assert mod.param_error("load_lift", 0.04, 0.05) == pytest.approx(0.25)
