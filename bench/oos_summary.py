@@ -32,7 +32,7 @@ sys.path.insert(0, str(ROOT / "src"))
 sys.path.insert(0, str(ROOT / "bench"))
 
 from szdyn.io import atomic_write_text, write_json  # noqa: E402
-from diagnosis_grid import NEUTRAL, param_error  # noqa: E402
+from diagnosis_grid import NEUTRAL, _median, param_error  # noqa: E402
 
 DOCS = ROOT / "docs"
 #: seed -> its scored results of record (docs/). Seed 22 was first run with ``--phase-steps 2``
@@ -83,14 +83,6 @@ def load(docs: Path = DOCS) -> list:
         if t is not None and f is not None and t != NEUTRAL.get(c["effect"], 0.0):
             c["param_error"] = param_error(c["effect"], t, f)
     return cases
-
-
-def _median(x):
-    x = sorted(x)
-    if not x:
-        return None
-    n = len(x)
-    return x[n // 2] if n % 2 else 0.5 * (x[n // 2 - 1] + x[n // 2])
 
 
 def _row(cases: list) -> dict:
