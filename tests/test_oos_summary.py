@@ -50,3 +50,34 @@ def test_encoder_scale_error_is_that_of_the_scale_error():
     # the gain 1.02 fitted as 1.03: the scale error is 50 % off (the gain 1 %)
     assert mod.param_error("encoder_scale", 1.02, 1.03) == pytest.approx(0.5)
     assert mod.param_error("load_lift", 0.04, 0.05) == pytest.approx(0.25)
+
+
+def test_every_scored_seed_file_is_counted_or_excluded_by_name():
+    mod = _bench()
+    files = mod.record()
+    assert sorted(files) == list(range(13, max(files) + 1))     # no seed skipped
+    on_disk = {p.name for p in (ROOT / "docs").glob("diagnosis-oos-seed*.json")}
+    assert on_disk == set(files.values()) | set(mod.NOT_OF_RECORD)
+    assert files[22] == "diagnosis-oos-seed22-default.json"
+
+
+def test_row_counts_named_cases_only_and_its_thresholds():
+    mod = _bench()
+    cases = [
+        # named: within 15 %, 3x reached from 3 floors
+        {"effect": "x", "seed": 1, "correct": True, "param_error": 0.15, "heldout_ratio": 3.0,
+         "heldout_over_floor": 3.0},
+        # named: off, 2x from 2 floors (not reachable), no floor in the next
+        {"effect": "x", "seed": 2, "correct": True, "param_error": 0.16, "heldout_ratio": 2.0,
+         "heldout_over_floor": 2.0},
+        {"effect": "x", "seed": 3, "correct": True, "param_error": 0.01, "heldout_ratio": 5.0},
+        # missed: its refit's figures are not counted
+        {"effect": "x", "seed": 4, "correct": False, "param_error": 0.0, "heldout_ratio": 9.0,
+         "heldout_over_floor": 9.0},
+    ]
+    r = mod._row(cases)
+    assert (r["cases"], r["named"], r["seeds_missed"]) == (4, 3, [4])
+    assert (r["param_within_15pct"], r["param_known"]) == (2, 3)
+    assert (r["gain_3x"], r["gain_known"]) == (2, 3)
+    assert (r["reachable_3x"], r["reachable"]) == (1, 1)
+    assert r["param_error_median"] == 0.15 and r["gain_median"] == 3.0
