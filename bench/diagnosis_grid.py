@@ -36,11 +36,11 @@ from szdyn.diagnose.candidates import CANDIDATES, primary_std  # noqa: E402
 NEUTRAL = {"encoder_scale": 1.0}
 
 
-def param_error(effect: str, truth: float, fitted: float) -> float:
+def param_error(effect: str, truth: float, fitted: float) -> float | None:
     """Relative error of the effect's fitted primary parameter against the truth's, measured from
-    the value without the effect (:data:`NEUTRAL`, else 0)."""
+    the value without the effect (:data:`NEUTRAL`, else 0); None for a truth at that value."""
     n = NEUTRAL.get(effect, 0.0)
-    return abs((fitted - n) / (truth - n) - 1.0)
+    return None if truth == n else abs((fitted - n) / (truth - n) - 1.0)
 
 
 def truth_primary(truth: dict, cid: str):
@@ -89,9 +89,10 @@ def run_case(work: Path, effect: str, seed: int, diag_args, current: float | Non
         e = next((x for x in d["effects"] if x["id"] == effect and x.get("primary")), None)
         res["truth_param"] = tv
         res["fitted_param"] = e["primary"]["value"] if e else None
-        if tv is not None and e and e["primary"]["value"] is not None and math.isfinite(tv) \
-                and tv != NEUTRAL.get(effect, 0.0):
-            res["param_error"] = param_error(effect, tv, e["primary"]["value"])
+        perr = param_error(effect, tv, e["primary"]["value"]) \
+            if tv is not None and e and e["primary"]["value"] is not None and math.isfinite(tv) else None
+        if perr is not None:
+            res["param_error"] = perr
             if CANDIDATES[effect].force_scaled and res["correct"]:
                 # the scale-free form (Candidate.force_scaled): relative to mu_k, the refit's
                 # against the truth's (the final model is the selected refit)

@@ -30,11 +30,10 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "src"))
-
 sys.path.insert(0, str(ROOT / "bench"))
 
 from szdyn.io import atomic_write_text, write_json  # noqa: E402
-from diagnosis_grid import NEUTRAL, _median, param_error  # noqa: E402
+from diagnosis_grid import _median, param_error  # noqa: E402
 
 DOCS = ROOT / "docs"
 #: Scored files in docs/ that are not a seed's figures of record, and why.
@@ -90,11 +89,12 @@ def _case13(c: dict) -> dict:
     return out
 
 
-def load(docs: Path = DOCS) -> list:
-    """Every case of record, as scored (list of dicts with ``effect``, ``seed``, ``correct``,
-    ``param_error``, ``heldout_ratio``, ``heldout_over_floor`` where known)."""
+def load(files: dict, docs: Path = DOCS) -> list:
+    """Every case of record (``files``: :func:`record`'s), as scored (list of dicts with
+    ``effect``, ``seed``, ``correct``, ``param_error``, ``heldout_ratio``,
+    ``heldout_over_floor`` where known)."""
     cases = []
-    for seed, name in sorted(record(docs).items()):
+    for seed, name in sorted(files.items()):
         d = json.loads((docs / name).read_text())
         if isinstance(d, dict):                # seed 13's file: {"_note", "cases", ...}
             cases += [_case13(c) for c in d["cases"]]
@@ -104,7 +104,7 @@ def load(docs: Path = DOCS) -> list:
         # scored again from the truth and the fit: seeds scored before NEUTRAL took encoder_scale's
         # error relative to the gain
         t, f = c.get("truth_param"), c.get("fitted_param")
-        if t is not None and f is not None and t != NEUTRAL.get(c["effect"], 0.0):
+        if t is not None and f is not None:
             c["param_error"] = param_error(c["effect"], t, f)
     return cases
 
@@ -125,10 +125,9 @@ def _row(cases: list) -> dict:
             "reachable": len(reach), "reachable_3x": sum(g >= GOAL_GAIN for g in reach)}
 
 
-def summarize(cases: list, files: dict | None = None) -> dict:
-    """Per-effect and overall counts (see the module notes), and the null cases' verdicts
-    (``files``: :func:`record`'s, default that of docs/)."""
-    files = record() if files is None else files
+def summarize(cases: list, files: dict) -> dict:
+    """Per-effect and overall counts (see the module notes) of :func:`load`'s ``cases`` from
+    ``files``, and the null cases' verdicts."""
     eff = [c for c in cases if c["effect"] != "none"]
     nulls = [c for c in cases if c["effect"] == "none"]
     ids = sorted({c["effect"] for c in eff})
@@ -226,7 +225,8 @@ def main(argv=None) -> int:
     ap.add_argument("--check", action="store_true",
                     help="compare with the committed --json instead of writing; exit 1 if it differs")
     args = ap.parse_args(argv)
-    s = summarize(load())
+    files = record()
+    s = summarize(load(files), files)
     if args.check:
         old = json.loads(args.json.read_text()) if args.json.is_file() else None
         if old != json.loads(json.dumps(s)):

@@ -20,14 +20,16 @@ def _bench():
 
 def test_committed_summary_is_the_count_of_the_committed_results():
     mod = _bench()
-    s = mod.summarize(mod.load())
+    files = mod.record()
+    s = mod.summarize(mod.load(files), files)
     committed = json.loads((ROOT / "docs" / "diagnosis-oos-summary.json").read_text())
     assert committed == json.loads(json.dumps(s))
 
 
 def test_counts_add_up():
     mod = _bench()
-    s = mod.summarize(mod.load())
+    files = mod.record()
+    s = mod.summarize(mod.load(files), files)
     rows = s["per_effect"].values()
     assert s["all"]["cases"] == sum(r["cases"] for r in rows)
     assert s["all"]["named"] == sum(r["named"] for r in rows)
@@ -38,7 +40,7 @@ def test_counts_add_up():
     # seed 13's earlier format is read like the others: its scored figures (docs/diagnosis-
     # standing.md, scored by hand when it ran) are 8 of 10 named, 7 of 8 parameters within
     # 15 %, 6 of 8 held-out gains of 3x or more
-    c13 = [c for c in mod.load() if c["seed"] == 13 and c["effect"] != "none"]
+    c13 = [c for c in mod.load(mod.record()) if c["seed"] == 13 and c["effect"] != "none"]
     named = [c for c in c13 if c["correct"]]
     assert (len(named), len(c13)) == (8, 10)
     assert sum(c["param_error"] <= 0.15 for c in named) == 7
