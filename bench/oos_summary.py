@@ -18,7 +18,10 @@ error of the effect's primary parameter as fitted (encoder_scale: of the gain's 
 the scale error itself; ``diagnosis_grid.param_error``); the held-out gain is the held-out RMSE before
 over after; "reachable" cases are those whose held-out error before was at least
 :data:`REACHABLE_FLOORS` noise floors (below that no model can cut it 3x). The floor is stored
-with seed 13 and from seed 22 on, so that column leaves out seeds 14-21.
+with seed 13 and from seed 22 on, so that column leaves out seeds 14-21. The reported standard
+deviation is judged by the error in it (``param_z``: |fitted - truth| / the primary's reported
+std, stored from seed 14 on): the share within :data:`Z_COVERED` std is what an honest std
+would put near 95 %.
 """
 from __future__ import annotations
 
@@ -47,6 +50,9 @@ GOAL_NAMED, GOAL_PARAM, GOAL_GAIN = 0.90, 0.15, 3.0
 #: Held-out error before, in noise floors, from which a 3x cut is within reach of a model that
 #: reproduces the recordings to the floor.
 REACHABLE_FLOORS = 3.0
+#: Errors within this many reported standard deviations count as covered by them (about 95 % of
+#: a normal error with that std).
+Z_COVERED = 2.0
 
 
 def record(docs: Path = DOCS) -> dict:
@@ -113,6 +119,7 @@ def _row(cases: list) -> dict:
     named = [c for c in cases if c["correct"]]
     perr = [abs(c["param_error"]) for c in named if c.get("param_error") is not None]
     gain = [c["heldout_ratio"] for c in named if c.get("heldout_ratio") is not None]
+    zs = [c["param_z"] for c in named if c.get("param_z") is not None]
     reach = [c["heldout_ratio"] for c in named
              if c.get("heldout_ratio") is not None and c.get("heldout_over_floor") is not None
              and c["heldout_over_floor"] >= REACHABLE_FLOORS]
@@ -122,7 +129,8 @@ def _row(cases: list) -> dict:
             "param_error_median": _median(perr),
             "gain_known": len(gain), "gain_3x": sum(g >= GOAL_GAIN for g in gain),
             "gain_median": _median(gain),
-            "reachable": len(reach), "reachable_3x": sum(g >= GOAL_GAIN for g in reach)}
+            "reachable": len(reach), "reachable_3x": sum(g >= GOAL_GAIN for g in reach),
+            "z_known": len(zs), "z_within_2": sum(z <= Z_COVERED for z in zs), "z_median": _median(zs)}
 
 
 def summarize(cases: list, files: dict) -> dict:
@@ -159,17 +167,21 @@ def markdown(s: dict) -> str:
          "scale error (the gain's deviation from 1; the per-seed files before seed 36 scored it "
          "relative to the gain, where every case is within 0.5 %); \"reachable\": named cases "
          f"whose held-out error before was at least {REACHABLE_FLOORS:g} noise floors (the floor "
-         "is stored with seed 13 and from seed 22 on: that column leaves out seeds 14-21).", "",
+         "is stored with seed 13 and from seed 22 on: that column leaves out seeds 14-21). "
+         "\"error in std\": the parameter's error in the standard deviations the diagnosis "
+         f"reported for it (stored from seed 14 on); an honest std would have about 95 % of the "
+         f"errors within {Z_COVERED:g}.", "",
          "| effect | named | seeds missed | parameter within 15 % | median parameter error "
-         "| held-out >= 3x | ... where reachable | median held-out gain |",
-         "|---|---|---|---|---|---|---|---|"]
+         f"| held-out >= 3x | ... where reachable | median held-out gain | error within {Z_COVERED:g} std "
+         "| median error in std |",
+         "|---|---|---|---|---|---|---|---|---|---|"]
 
     def line(name, r, seeds=True):
         missed = (', '.join(map(str, r['seeds_missed'])) or '-') if seeds else f"{r['cases'] - r['named']} cases"
         return (f"| {name} | {_pct(r['named'], r['cases'])} | {missed} "
                 f"| {r['param_within_15pct']}/{r['param_known']} | {_f(r['param_error_median'], '.1%').replace('%', ' %')} "
                 f"| {r['gain_3x']}/{r['gain_known']} | {r['reachable_3x']}/{r['reachable']} "
-                f"| {_f(r['gain_median'], '.1f')}x |")
+                f"| {_f(r['gain_median'], '.1f')}x | {r['z_within_2']}/{r['z_known']} | {_f(r['z_median'], '.1f')} |")
 
     L += [line(e, r) for e, r in s["per_effect"].items()]
     L += [line("**all**", s["all"], False),

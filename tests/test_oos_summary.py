@@ -68,14 +68,14 @@ def test_row_counts_named_cases_only_and_its_thresholds():
     cases = [
         # named: within 15 %, 3x reached from 3 floors
         {"effect": "x", "seed": 1, "correct": True, "param_error": 0.15, "heldout_ratio": 3.0,
-         "heldout_over_floor": 3.0},
+         "heldout_over_floor": 3.0, "param_z": 2.0},
         # named: off, 2x from 2 floors (not reachable), no floor in the next
         {"effect": "x", "seed": 2, "correct": True, "param_error": 0.16, "heldout_ratio": 2.0,
-         "heldout_over_floor": 2.0},
+         "heldout_over_floor": 2.0, "param_z": 7.0},
         {"effect": "x", "seed": 3, "correct": True, "param_error": 0.01, "heldout_ratio": 5.0},
         # missed: its refit's figures are not counted
         {"effect": "x", "seed": 4, "correct": False, "param_error": 0.0, "heldout_ratio": 9.0,
-         "heldout_over_floor": 9.0},
+         "heldout_over_floor": 9.0, "param_z": 0.1},
     ]
     r = mod._row(cases)
     assert (r["cases"], r["named"], r["seeds_missed"]) == (4, 3, [4])
@@ -83,3 +83,5 @@ def test_row_counts_named_cases_only_and_its_thresholds():
     assert (r["gain_3x"], r["gain_known"]) == (2, 3)
     assert (r["reachable_3x"], r["reachable"]) == (1, 1)
     assert r["param_error_median"] == 0.15 and r["gain_median"] == 3.0
+    # the error in the reported std: over named cases where it is stored, 2 std counted as covered
+    assert (r["z_within_2"], r["z_known"], r["z_median"]) == (1, 2, 4.5)

@@ -52,6 +52,11 @@ class FitParam:
         For a *shape* parameter (one that changes nothing while the effect's amplitude is 0,
         such as a Stribeck speed): the values at which the linear screening tries the
         amplitude columns; the best becomes the refit's start. Empty: screened at ``start``.
+    force_power : float
+        How the value scales with the model's force scale (every force coefficient multiplied
+        by ``lam``): as ``lam ** force_power``. 1 for a torque, a torque per speed or a friction
+        coefficient (the slider's normal load is fixed), -1 for a compliance, 0 for ratios,
+        shapes and sensor terms. Defines :func:`.fit.force_scale_direction`.
     """
 
     name: str
@@ -62,6 +67,7 @@ class FitParam:
     log: bool = False
     start: float | None = None
     screen_at: tuple = ()
+    force_power: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -246,11 +252,11 @@ def _viscous_probes(base, speed, slider_scale):
 #: ``mu_s`` is fitted through its excess over ``mu_k`` (``dmu_s = mu_s - mu_k > 0``) so that
 #: the model's requirement ``mu_s >= mu_k`` holds at every trial point.
 CALIBRATED = (
-    FitParam("k_c", "N*m/rad", 0.4, 2.5, 0.1, log=True),
-    FitParam("b_c", "N*m*s/rad", 0.4, 2.5, 0.1, log=True),
-    FitParam("k_imp", "N/m^n", 0.4, 2.5, 0.1, log=True),
-    FitParam("mu_k", "1", 0.4, 2.5, 0.05, log=True),
-    FitParam("dmu_s", "1", 0.2, 5.0, 0.1, log=True),
+    FitParam("k_c", "N*m/rad", 0.4, 2.5, 0.1, log=True, force_power=1.0),
+    FitParam("b_c", "N*m*s/rad", 0.4, 2.5, 0.1, log=True, force_power=1.0),
+    FitParam("k_imp", "N/m^n", 0.4, 2.5, 0.1, log=True, force_power=1.0),
+    FitParam("mu_k", "1", 0.4, 2.5, 0.05, log=True, force_power=1.0),
+    FitParam("dmu_s", "1", 0.2, 5.0, 0.1, log=True, force_power=1.0),
 )
 #: Coefficients the issue names but the data cannot identify (kept at their defaults).
 FIXED_UNIDENTIFIED = ("b_imp",)
@@ -258,14 +264,14 @@ FIXED_UNIDENTIFIED = ("b_imp",)
 CANDIDATES: dict[str, Candidate] = {c.id: c for c in (
     Candidate(
         "slider_viscous", "model",
-        (FitParam("c_visc", "N*m*s/rad", 0.0, 0.1, 0.005),),
+        (FitParam("c_visc", "N*m*s/rad", 0.0, 0.1, 0.005, force_power=1.0),),
         _lin("c_visc"), "c_visc", lambda v: v["c_visc"],
         "tau_b += -c_visc * u_b",
         "band-speed-proportional drag: slip grows with held speed (2 pi vs pi) beyond Coulomb",
         signature=("band_speed",), force_scaled=True, probes=_viscous_probes, probes_only=False),
     Candidate(
         "slider_stribeck", "model",
-        (FitParam("mu_st", "1", 0.0, 1.5, 0.1), FitParam("v_st", "rad/s", 0.05, 3.0, 0.2, start=0.5,
+        (FitParam("mu_st", "1", 0.0, 1.5, 0.1, force_power=1.0), FitParam("v_st", "rad/s", 0.05, 3.0, 0.2, start=0.5,
                                                       # log-spaced over the bounds: the column of
                                                       # mu_st depends strongly on v_st
                                                       screen_at=(0.1, 0.3, 1.0, 2.5))),
@@ -282,14 +288,14 @@ CANDIDATES: dict[str, Candidate] = {c.id: c for c in (
         signature=("direction",)),
     Candidate(
         "load_lift", "model",
-        (FitParam("tau_lift", "N*m", -0.3, 0.3, 0.02),),
+        (FitParam("tau_lift", "N*m", -0.3, 0.3, 0.02, force_power=1.0),),
         _lin("tau_lift"), "tau_lift", lambda v: v["tau_lift"],
         "tau_b += -tau_lift,  tau_lift = m_lift g P_B / (2 pi)",
         "a constant torque against extension: more slip extending, less retracting",
         signature=("direction", "load"), force_scaled=True),
     Candidate(
         "position_periodic", "model",
-        (FitParam("a_rev_s", "N*m", -0.15, 0.15, 0.01), FitParam("a_rev_c", "N*m", -0.15, 0.15, 0.01)),
+        (FitParam("a_rev_s", "N*m", -0.15, 0.15, 0.01, force_power=1.0), FitParam("a_rev_c", "N*m", -0.15, 0.15, 0.01, force_power=1.0)),
         _periodic, "a_rev", lambda v: math.hypot(v["a_rev_s"], v["a_rev_c"]),
         "tau_b += -a_rev sin(q_b + phi_rev)",
         "residual periodic in the band angle, once per band revolution",
@@ -310,7 +316,7 @@ CANDIDATES: dict[str, Candidate] = {c.id: c for c in (
         signature=("load",)),
     Candidate(
         "drive_compliance", "model",
-        (FitParam("drive_compliance", "rad/(N*m)", 0.0, 2.0, 0.1),),
+        (FitParam("drive_compliance", "rad/(N*m)", 0.0, 2.0, 0.1, force_power=-1.0),),
         _compliance, "k_drive", lambda v: (1.0 / v["drive_compliance"]
                                            if v["drive_compliance"] >= RIGID_COMPLIANCE else math.inf),
         "tau_w = k_drive (q_m - q_w) + c_drive (u_m - u_w),  q_m the measured motor angle",

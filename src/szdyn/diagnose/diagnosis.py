@@ -58,6 +58,7 @@ from .candidates import CANDIDATES, Candidate
 from .detect import detectable_amplitude
 from .engine import FeatureModel, rms
 from .fit import Hypothesis, fit_hypothesis, gauss_newton_step, jacobian, linear_step
+from .force_scale import force_scale_secant
 from .locate import follows, locate
 from .noise import bump_noise, sensor_noise, torque_bump_noise, torque_sensor_noise
 from .phase import PHASE_GATE, estimate_phases, identified_phases
@@ -1798,6 +1799,18 @@ class Diagnosis:
                     self.torque_[k] = {"heldout_rmse": rms(np.concatenate(held)) if held else math.nan,
                                        "per_recording": per}
             lap("decide")
+            # what is reported with the values: their standard deviations from the Jacobian
+            # measured again along the force scale (.force_scale), each model with the phases it
+            # was fitted with; optima, verdict and figures are as they were
+            with_held(held_phases.get(None, {}), None)
+            cal = self.calibrated_ = force_scale_secant(model, cal.hypothesis, cal, fit_idx)
+            if self.selected_:
+                with_held(final_held, self.final_)
+                self.final_ = force_scale_secant(model, self.final_.hypothesis, self.final_, fit_idx)
+                self.refits_[self.selected_[0]]["result"] = self.final_
+            else:
+                self.final_ = cal
+            lap("uncertainty")
             self.n_runs_ = model.n_runs_
             self.n_failed_ = model.n_failed_
         self.recordings_ = recs

@@ -7,7 +7,9 @@ Jacobian whose columns run as one parallel batch (:class:`~szdyn.diagnose.engine
 Uncertainty: ``cov = s^2 (J^T J)^-1 * c`` at the optimum, ``s^2 = RSS / (n - p)``, inflated by
 ``c = WINDOW_S / FEATURE_DT`` (= 2) because neighbouring feature samples share half their
 smoothing window and are not independent. Standard deviations of log-fitted coefficients are
-converted to their own units by the delta method (``sigma_value = value * sigma_log``).
+converted to their own units by the delta method (``sigma_value = value * sigma_log``). What the
+diagnosis reports for its calibrated and final models is recomputed from this Jacobian corrected
+along the force scale by model runs (:mod:`.force_scale`).
 """
 from __future__ import annotations
 

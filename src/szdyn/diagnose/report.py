@@ -44,6 +44,9 @@ UNITS = {"rmse": "rad/s", "heldout_rmse": "rad/s", "noise_floor": "rad/s", "t0":
          "motor_torque": "floor, heldout_rmse and per_recording in N m; torque_constant N m/A; weight "
                          "rad/s per N m (the speed floor over the torque floor): when used, every fit and "
                          "held-out RMSE counts the torque residual times it, in rad/s at the speed floor",
+         "uncertainty": "step: half-width of the secant in log force scale (1); predicted, measured: RMS "
+                        "change of the compared speed for that step, by the fit's Jacobian and by model runs "
+                        "(rad/s, weighted as the fit)",
          "k_c": "N*m/rad", "b_c": "N*m*s/rad", "k_imp": "N/m^n", "b_imp": "N*s/m^(n+1)", "mu_s": "1", "mu_k": "1"}
 
 
@@ -91,6 +94,19 @@ def _clean(x):
     if isinstance(x, (float, np.floating)):
         return float(x) if math.isfinite(x) else None
     return x
+
+
+def _force_scale_md(res) -> str:
+    """One sentence on the force-scale secant of ``res`` (:mod:`.force_scale`)."""
+    fs = res.extra.get("force_scale")
+    if fs is None:
+        return "No parameter of this model scales with the forces: no force-scale correction."
+    if not fs["corrected"]:
+        return f"They were not corrected along the force scale: {fs['reason']}."
+    return ("The Jacobian they come from was corrected along the force scale (every force coefficient "
+            f"and torque-like parameter scaled together): {100 * fs['step']:g} % of scale changes the "
+            f"compared speed by {_f(fs['measured'])} rad/s RMS in model runs, where the fit's Jacobian "
+            f"predicted {_f(fs['predicted'])} (two runs per fit recording; the optimum is unchanged).")
 
 
 def _status(res) -> str:
@@ -246,6 +262,7 @@ def _to_json(d) -> dict:
         "heavy_look": d.heavy_look_,
         "not_identified": {k: d.recordings_[0].params[k] for k in FIXED_UNIDENTIFIED},
         "final": {"values": fin.values, "std": fin.std, "sensor": sensor},
+        "uncertainty": {"calibrated": cal.extra.get("force_scale"), "final": fin.extra.get("force_scale")},
         "fit": {"before": {"heldout_rmse": d.heldout_["before"]["heldout_rmse"],
                            "fit_rmse": cal.rmse_fit,
                            "per_recording": d.heldout_["before"]["per_recording"]},
@@ -595,10 +612,10 @@ def _report_md(d, js) -> str:
     L += ["", f"`b_imp` is not identifiable from these features (below the noise floor and collinear with "
           f"`b_c`, `k_imp`): kept at {_f(d.recordings_[0].params['b_imp'])} {UNITS['b_imp']}.",
           "Standard deviations are local (Jacobian) estimates, inflated x2 for the overlap of neighbouring "
-          "samples. They measure the curvature of the valley the fit ended in, not how far that valley is "
-          "from the truth: the fit cost is rippled by the impact bumps, and on szdyn's benchmark grid "
-          "(DIAGNOSIS.md, column error/std) coefficients and effect parameters were typically many "
-          "standard deviations off. Judge the fit, not the coefficients.", "",
+          "samples. " + _force_scale_md(d.calibrated_) + " They measure the curvature of the valley the fit ended "
+          "in, not how far that valley is from the truth: the fit cost is rippled by the impact bumps, and "
+          "on szdyn's benchmark grid (docs/diagnosis-oos-summary.md, column \"error in std\") effect "
+          "parameters were often several standard deviations off. Judge the fit, not the coefficients.", "",
           f"Fit RMSE {_f(d.calibrated_.rmse_fit)} rad/s ({d.calibrated_.rmse_fit / d.floor_:.2f}x the floor); "
           f"the fit {_status(d.calibrated_)}.", "",
           *_staged_md(d),
@@ -658,7 +675,8 @@ def _report_md(d, js) -> str:
             L.append(f"| {k} | {_f(val)} | {_f(e['std'].get(k))} |")
         L += ["", f"Model/sensor parameters set: `{e['parameters']}`; effect parameter "
               f"`{e['primary']['name']}` = {_f(e['primary']['value'])} (std {_f(e['primary']['std'])}; "
-              "a local estimate like the coefficients', see the calibration section).", ""]
+              "a local estimate like the coefficients', see the calibration section). "
+              + _force_scale_md(d.final_), ""]
         if "per_mu_k" in e["primary"] and d.torque_ is not None and d.torque_["used"]:
             L += [f"`{e['primary']['name']}` / mu_k = {_f(e['primary']['per_mu_k'])}. The measured motor "
                   "torque took part in the fit, so the size of the torques is measured, not only their "

@@ -1,0 +1,116 @@
+"""The force-scale secant (szdyn.diagnose.force_scale): the direction along which every force
+scales, and the reported standard deviations from a Jacobian corrected along it by runs."""
+import math
+
+import numpy as np
+import pytest
+
+from szdyn.diagnose.candidates import CANDIDATES
+from szdyn.diagnose.fit import FitResult, Hypothesis, _uncertainty
+from szdyn.diagnose.force_scale import FORCE_SCALE_STEP, force_scale_direction, force_scale_secant
+
+START = {"k_c": 0.05, "b_c": 0.0075, "k_imp": 4e12, "mu_s": 0.3, "mu_k": 0.25}
+
+
+def test_every_force_scaled_candidate_has_a_parameter_that_scales():
+    for c in CANDIDATES.values():
+        assert c.force_scaled == any(p.force_power != 0.0 for p in c.params), c.id
+
+
+def test_direction_in_fit_coordinates():
+    # the base's log coordinates move by 1 per unit log scale; a torque amplitude by its value,
+    # a compliance by minus its value, a shape parameter and a sensor term not at all
+    h = Hypothesis(START, CANDIDATES["slider_stribeck"])
+    x = np.array([0.1, -0.2, 0.0, 0.05, 0.3, 0.08, 0.7])
+    assert force_scale_direction(h, x).tolist() == [1, 1, 1, 1, 1, 0.08, 0.0]
+    h = Hypothesis(START, CANDIDATES["drive_compliance"])
+    assert force_scale_direction(h, np.r_[np.zeros(5), 0.4])[-1] == pytest.approx(-0.4)
+    h = Hypothesis(START, CANDIDATES["encoder_delay"])
+    assert force_scale_direction(h, np.r_[np.zeros(5), 0.01])[-1] == 0.0
+    # moving along it scales every force and the torque alike
+    h = Hypothesis(START, CANDIDATES["load_lift"])
+    x = np.r_[np.zeros(5), 0.05]
+    lam = 1.001
+    v0, v1 = h.values(x), h.values(x + math.log(lam) * force_scale_direction(h, x))
+    for k in ("k_c", "b_c", "k_imp", "mu_s", "mu_k", "tau_lift"):
+        assert v1[k] / v0[k] == pytest.approx(lam, rel=1e-6), k
+
+
+class LinearModel:
+    """``residuals`` like FeatureModel's for a model speed linear in the fit coordinates,
+    ``speed = A x`` (``hyp`` maps ``x`` to a point; the model recovers ``x`` from it)."""
+
+    def __init__(self, hyp, A, y, fail=False):
+        self.hyp, self.A, self.y, self.fail = hyp, A, y, fail
+        self.n_failed_ = 0
+
+    def _x(self, point):
+        mc, _ = point
+        v = dict(mc)
+        x = [math.log(v[k] / self.hyp._start_log[k]) for k in ("k_c", "b_c", "k_imp", "mu_k")]
+        x.append(math.log((v["mu_s"] - v["mu_k"]) / self.hyp._start_log["dmu_s"]))
+        x.append(v["tau_lift"])
+        return np.array(x)
+
+    def residuals(self, points, which):
+        if self.fail:
+            self.n_failed_ += 1
+        return np.array([self.y - self.A @ self._x(pt) for pt in points])
+
+
+def _fit_result(h, x, J, y, A):
+    r = y - A @ x
+    std, corr = _uncertainty(h, x, J, float(r @ r), r.size)
+    return FitResult(hypothesis=h, x=x, values=h.values(x), std=std, corr=corr, rss_fit=float(r @ r),
+                     n_fit=r.size, rmse_fit=math.sqrt(r @ r / r.size), nfev=1, J=J)
+
+
+def _setup(seed=0, n=60):
+    rng = np.random.default_rng(seed)
+    h = Hypothesis(START, CANDIDATES["load_lift"])
+    x = np.r_[0.02, -0.01, 0.03, 0.01, -0.02, 0.06]
+    s = force_scale_direction(h, x)
+    # a model that the force scale changes only slightly (1e-3 of a typical column): the columns
+    # cancel along s
+    A = rng.standard_normal((n, 6))
+    A -= np.outer(A @ s, s) / (s @ s) * (1 - 1e-3)
+    y = A @ x + 0.01 * rng.standard_normal(n)
+    return h, x, s, A, y, rng
+
+
+def test_an_exact_jacobian_is_left_as_it_is():
+    h, x, s, A, y, _ = _setup()
+    res = _fit_result(h, x, A, y, A)
+    out = force_scale_secant(LinearModel(h, A, y), h, res, [0])
+    assert out.extra["force_scale"]["corrected"]
+    m, p = out.extra["force_scale"]["measured"], out.extra["force_scale"]["predicted"]
+    assert m == pytest.approx(p, rel=1e-6)
+    for k in res.std:
+        assert out.std[k] == pytest.approx(res.std[k], rel=1e-6), k
+    assert out.x is res.x and out.rss_fit == res.rss_fit and out.J is res.J   # the fit is untouched
+
+
+def test_a_jacobian_that_breaks_the_valley_gets_it_back():
+    # the fit's Jacobian off by 3 % per column (as the impact bumps leave it): it sees the scale
+    # as well determined; the runs along s restore the valley, and the torque's std grows to
+    # that of the exact Jacobian
+    h, x, s, A, y, rng = _setup()
+    J = A * (1 + 0.03 * rng.standard_normal(A.shape))
+    exact = _fit_result(h, x, A, y, A)
+    res = _fit_result(h, x, J, y, A)
+    assert res.std["tau_lift"] < 0.2 * exact.std["tau_lift"]
+    out = force_scale_secant(LinearModel(h, A, y), h, res, [0])
+    fs = out.extra["force_scale"]
+    assert fs["predicted"] > 10 * fs["measured"]
+    assert fs["measured"] == pytest.approx(FORCE_SCALE_STEP * math.sqrt(np.mean((A @ s) ** 2)), rel=1e-6)
+    assert out.std["tau_lift"] == pytest.approx(exact.std["tau_lift"], rel=0.02)
+
+
+def test_a_failed_run_leaves_the_std_and_says_so():
+    h, x, s, A, y, rng = _setup()
+    J = A * (1 + 0.03 * rng.standard_normal(A.shape))
+    res = _fit_result(h, x, J, y, A)
+    out = force_scale_secant(LinearModel(h, A, y, fail=True), h, res, [0])
+    assert out.std == res.std
+    assert out.extra["force_scale"]["corrected"] is False
+    assert "failed" in out.extra["force_scale"]["reason"]
