@@ -1081,6 +1081,7 @@ def test_concealed_viscous_drag_is_named_recovered_and_improves_heldout(viscous)
     assert p["c_visc"] == pytest.approx(e["primary"]["value"])
     assert p["k_c"] == pytest.approx(d["final"]["values"]["k_c"])
     assert "slider_viscous" in (out / "report.md").read_text()
+    assert (out / "report.md").read_text().count("was corrected along the force scale") == 2   # base, effect
 
 
 def test_diagnosis_json_schema(viscous):
@@ -1159,6 +1160,9 @@ def test_null_recordings_give_none(null):
     assert d["selected"] == [] and d["verdict"] == "none"
     assert d["fit"]["after"]["heldout_rmse"] == d["fit"]["before"]["heldout_rmse"]
     assert "Verdict: none" in (out / "report.md").read_text()
+    # nothing named: the final model is the calibrated base, its std corrected once
+    assert d["uncertainty"]["final"] == d["uncertainty"]["calibrated"] and d["uncertainty"]["final"]["corrected"]
+    assert d["final"]["std"]["mu_k"] == pytest.approx(d["calibrated_std"]["mu_k"])
 
 
 def test_manifest_without_split_holds_out_what_choose_heldout_picks(null, monkeypatch, capsys):

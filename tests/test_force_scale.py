@@ -5,7 +5,8 @@ import math
 import numpy as np
 import pytest
 
-from szdyn.diagnose.candidates import CANDIDATES
+from szdyn.diagnose.candidates import CANDIDATES, RIGID_COMPLIANCE
+from szdyn.diagnose.engine import FeatureModel
 from szdyn.diagnose.fit import FitResult, Hypothesis, _uncertainty
 from szdyn.diagnose.force_scale import FORCE_SCALE_STEP, force_scale_direction, force_scale_secant
 
@@ -30,19 +31,21 @@ def test_direction_in_fit_coordinates():
     # moving along it scales every force and the torque alike
     h = Hypothesis(START, CANDIDATES["load_lift"])
     x = np.r_[np.zeros(5), 0.05]
-    lam = 1.001
+    lam = 1.0001          # d x / d log(lam): exact for the log coordinates, first order for tau_lift
     v0, v1 = h.values(x), h.values(x + math.log(lam) * force_scale_direction(h, x))
     for k in ("k_c", "b_c", "k_imp", "mu_s", "mu_k", "tau_lift"):
-        assert v1[k] / v0[k] == pytest.approx(lam, rel=1e-6), k
+        assert v1[k] / v0[k] == pytest.approx(lam, rel=1e-8), k
 
 
 class LinearModel:
     """``residuals`` like FeatureModel's for a model speed linear in the fit coordinates,
     ``speed = A x`` (``hyp`` maps ``x`` to a point; the model recovers ``x`` from it)."""
 
-    def __init__(self, hyp, A, y, fail=False):
-        self.hyp, self.A, self.y, self.fail = hyp, A, y, fail
-        self.n_failed_ = 0
+    def __init__(self, hyp, A, y, failed=False):
+        self.hyp, self.A, self.y, self.failed = hyp, A, y, failed
+
+    def any_failed(self, points, which):
+        return self.failed
 
     def _x(self, point):
         mc, _ = point
@@ -53,8 +56,6 @@ class LinearModel:
         return np.array(x)
 
     def residuals(self, points, which):
-        if self.fail:
-            self.n_failed_ += 1
         return np.array([self.y - self.A @ self._x(pt) for pt in points])
 
 
@@ -98,19 +99,51 @@ def test_a_jacobian_that_breaks_the_valley_gets_it_back():
     J = A * (1 + 0.03 * rng.standard_normal(A.shape))
     exact = _fit_result(h, x, A, y, A)
     res = _fit_result(h, x, J, y, A)
-    assert res.std["tau_lift"] < 0.2 * exact.std["tau_lift"]
+    assert res.std["tau_lift"] < 0.1 * exact.std["tau_lift"]          # measured 0.05x
     out = force_scale_secant(LinearModel(h, A, y), h, res, [0])
     fs = out.extra["force_scale"]
     assert fs["predicted"] > 10 * fs["measured"]
     assert fs["measured"] == pytest.approx(FORCE_SCALE_STEP * math.sqrt(np.mean((A @ s) ** 2)), rel=1e-6)
-    assert out.std["tau_lift"] == pytest.approx(exact.std["tau_lift"], rel=0.02)
+    assert out.std["tau_lift"] == pytest.approx(exact.std["tau_lift"], rel=2e-3)     # measured 1e-3
 
 
 def test_a_failed_run_leaves_the_std_and_says_so():
     h, x, s, A, y, rng = _setup()
     J = A * (1 + 0.03 * rng.standard_normal(A.shape))
     res = _fit_result(h, x, J, y, A)
-    out = force_scale_secant(LinearModel(h, A, y, fail=True), h, res, [0])
+    out = force_scale_secant(LinearModel(h, A, y, failed=True), h, res, [0])
     assert out.std == res.std
     assert out.extra["force_scale"]["corrected"] is False
     assert "failed" in out.extra["force_scale"]["reason"]
+
+
+def test_a_failed_run_found_in_the_cache_counts_as_failed():
+    # loaded from a checkpoint, a failed run is a cached None: n_failed_ does not see it
+    class Rec:
+        name, tau = "a.csv", None
+
+    m = FeatureModel([Rec()], workers=1, cache={("a.csv", (("mu_k", 0.2),)): None})
+    assert m.any_failed([({"mu_k": 0.2}, {})], [0]) and m.n_failed_ == 0 and m.n_runs_ == 0
+
+
+class Flat:
+    """A model whose residual does not move (only the guards are under test)."""
+
+    def residuals(self, points, which):
+        return np.zeros((len(points), 10))
+
+    def any_failed(self, points, which):
+        return False
+
+
+def test_a_drive_scaled_past_the_rigid_limit_is_not_corrected():
+    h = Hypothesis(START, CANDIDATES["drive_compliance"])
+    x = np.r_[np.zeros(5), 1.02 * RIGID_COMPLIANCE]          # 5 % less compliance is rigid
+    J = np.ones((10, 6))
+    res = _fit_result(h, x, J, np.zeros(10), np.zeros((10, 6)))
+    out = force_scale_secant(Flat(), h, res, [0])
+    assert out.extra["force_scale"]["corrected"] is False and out.std == res.std
+    assert "another model" in out.extra["force_scale"]["reason"]
+    x[-1] = 1.2 * RIGID_COMPLIANCE                             # +-5 % stays compliant
+    res = _fit_result(h, x, J, np.zeros(10), np.zeros((10, 6)))
+    assert force_scale_secant(Flat(), h, res, [0]).extra["force_scale"]["corrected"]

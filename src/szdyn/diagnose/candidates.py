@@ -56,7 +56,7 @@ class FitParam:
         How the value scales with the model's force scale (every force coefficient multiplied
         by ``lam``): as ``lam ** force_power``. 1 for a torque, a torque per speed or a friction
         coefficient (the slider's normal load is fixed), -1 for a compliance, 0 for ratios,
-        shapes and sensor terms. Defines :func:`.fit.force_scale_direction`.
+        shapes and sensor terms. Defines :func:`.force_scale.force_scale_direction`.
     """
 
     name: str

@@ -1802,7 +1802,7 @@ class Diagnosis:
             # what is reported with the values: their standard deviations from the Jacobian
             # measured again along the force scale (.force_scale), each model with the phases it
             # was fitted with; optima, verdict and figures are as they were
-            with_held(held_phases.get(None, {}), None)
+            with_held(held_phases.get(None, {}), cal)
             cal = self.calibrated_ = force_scale_secant(model, cal.hypothesis, cal, fit_idx)
             if self.selected_:
                 with_held(final_held, self.final_)

@@ -339,6 +339,11 @@ class FeatureModel:
         self._run_all([k for row in keys for k in row])
         return [[(self.recordings[i], self._cache[k]) for i, k in zip(which, row)] for row in keys]
 
+    def any_failed(self, points, which: Sequence[int]) -> bool:
+        """Whether a run of ``points`` on ``which`` failed, made now or found in the cache (a
+        failed run loaded from a checkpoint counts too, which ``n_failed_`` does not)."""
+        return any(res is None for row in self._runs_for(points, which) for _, res in row)
+
     def residuals(self, points, which: Sequence[int]):
         """Residuals per point, concatenated over ``which``: per recording, measured minus model
         band speed (rad/s) times its weight in ``weights`` (default 1), then, if the recording

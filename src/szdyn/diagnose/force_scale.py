@@ -4,7 +4,8 @@ measured along it.
 Driven by the measured wheel motion, the model slips by the ratio of the slider's friction to
 the roller contacts' forces, not by their size: every force coefficient (``k_c, b_c, k_imp,
 mu_s, mu_k``) and every torque-like effect parameter multiplied by one factor ``lam`` changes
-the compared band speed only through the band's inertia and the fixed ``b_imp``
+the compared band speed only through the inertias and what is not fitted (``b_imp``; with a
+compliant drive, its damping ``c_drive``)
 (docs/DIAGNOSIS-DESIGN.md, "The force scale": x1.25 moved it by 0.4-2.8 noise floors).
 
 The fit's forward-difference Jacobian does not see this. Its columns are large along the scale
@@ -25,14 +26,15 @@ every ``v`` orthogonal to ``s``), and recomputes the standard deviations from ``
 itself (its optimum, its Jacobian for later steps) is unchanged; only what is reported changes.
 
 Measured on those 25 cases (in sample: the step was chosen on seed 35): effect parameters within
-2 reported std 5 -> 11, median error 5.3 -> 2.7 std; of the 13 force-scaled effects 1 -> 6 and
-12.2 -> 2.6 std. The others hardly move, and some force-scaled ones stay far off (slider_viscous
+2 reported std 5 -> 11, median error 5.3 -> 2.7 std; of the 13 cases of force-scaled effects 1 -> 6 and
+12.2 -> 2.6 std (these are diagnoses re-evaluated, not new ones). The others hardly move, and some force-scaled ones stay far off (slider_viscous
 35, position_periodic 35: 17 std): their error lies along other directions the Jacobian gets
 wrong, so the report still calls the std local.
 """
 from __future__ import annotations
 
 import dataclasses
+import math
 
 import numpy as np
 
@@ -42,8 +44,8 @@ from .fit import FitResult, Hypothesis, _uncertainty
 __all__ = ["FORCE_SCALE_STEP", "force_scale_direction", "force_scale_secant"]
 
 #: Half-width, in log force scale, of the central secant along the scale direction (+-5 %). The
-#: primaries' std hardly depend on it from 0.05 to 0.1 (within 5 % of each other on nine seed-35
-#: cases); at 0.2 the slider_stribeck case's changed 7x (the nonlinearity of its low-speed peak),
+#: primaries' std hardly depend on it from 0.05 to 0.1 (within 5 % of each other on nine of the
+#: seed-35 cases); at 0.2 the slider_stribeck case's changed 7x (the nonlinearity of its low-speed peak),
 #: so the smaller step.
 FORCE_SCALE_STEP = 0.05
 
@@ -83,22 +85,30 @@ def force_scale_secant(model: FeatureModel, hyp: Hypothesis, res: FitResult, whi
     FitResult
         A copy of ``res`` (same optimum, fit Jacobian and cost) with ``std`` and ``corr`` from
         the corrected Jacobian, and ``extra["force_scale"]``: ``step``, ``predicted`` and
-        ``measured`` (RMS change of the compared feature, rad/s, for ``step`` of log scale: by
-        the fit's Jacobian and by the runs), ``corrected`` (bool). ``res`` itself where a run
-        failed (the secant is then unknown; ``corrected`` False, ``reason`` says why).
+        ``measured`` (RMS change of the fit residual, rad/s (the band speed, and the weighted
+        motor torque where that is compared), for ``step`` of log scale: by the fit's Jacobian
+        and by the runs), ``corrected`` (bool). Where a run along the scale failed (now or in
+        the cache) or the effect turns into another model there (a drive compliance below the
+        rigid limit), ``std`` and ``corr`` stay as they were, ``corrected`` is False and
+        ``reason`` says why.
     """
     s = force_scale_direction(hyp, res.x)
-    if not np.any(s):
-        return res
-    failed = model.n_failed_
-    up, down = model.residuals([hyp.point(res.x + step * s), hyp.point(res.x - step * s)], which)
+    pts = [hyp.point(res.x + step * s), hyp.point(res.x - step * s)]
+    up, down = model.residuals(pts, which)
     pred = res.J @ s
     info = {"step": step, "predicted": rms(pred) * step}
-    if model.n_failed_ > failed:
+    why = None
+    if model.any_failed(pts, which):
         # a failed run's feature is zeros: its "change" would be the whole band speed
+        why = "a run along the scale failed"
+    elif hyp.candidate is not None and not all(
+            math.isfinite(hyp.candidate.primary_of(hyp.candidate_values(res.x + a * step * s))) for a in (1, -1)):
+        # e.g. a drive compliance scaled below the rigid limit: the model jumps to a rigid drive
+        why = "the effect turns into another model along the scale"
+    if why is not None:
         return dataclasses.replace(res, extra={**res.extra, "force_scale": {
-            **info, "measured": None, "corrected": False, "reason": "a run along the scale failed"}})
-    # residual = measured - model speed, so d(model speed) along s = -(d residual)
+            **info, "measured": None, "corrected": False, "reason": why}})
+    # residual = measured - model, so the change of the model along s = -(change of the residual)
     g = -(up - down) / (2.0 * step)
     J = res.J + np.outer(g - pred, s) / float(s @ s)
     std, corr = _uncertainty(hyp, res.x, J, res.rss_fit, res.n_fit)

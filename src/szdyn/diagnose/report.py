@@ -45,8 +45,12 @@ UNITS = {"rmse": "rad/s", "heldout_rmse": "rad/s", "noise_floor": "rad/s", "t0":
                          "rad/s per N m (the speed floor over the torque floor): when used, every fit and "
                          "held-out RMSE counts the torque residual times it, in rad/s at the speed floor",
          "uncertainty": "step: half-width of the secant in log force scale (1); predicted, measured: RMS "
-                        "change of the compared speed for that step, by the fit's Jacobian and by model runs "
-                        "(rad/s, weighted as the fit)",
+                        "change of the fit residual (the compared speed, and the weighted motor torque where "
+                        "compared) for that step, by the fit's Jacobian and by model runs (rad/s, weighted as "
+                        "the fit)",
+         "std (effects)": "own units; calibrated_std, final.std and the selected effect's std come from the "
+                          "Jacobian corrected along the force scale (see uncertainty), the other effects' "
+                          "std are local (uncorrected)",
          "k_c": "N*m/rad", "b_c": "N*m*s/rad", "k_imp": "N/m^n", "b_imp": "N*s/m^(n+1)", "mu_s": "1", "mu_k": "1"}
 
 
@@ -100,13 +104,14 @@ def _force_scale_md(res) -> str:
     """One sentence on the force-scale secant of ``res`` (:mod:`.force_scale`)."""
     fs = res.extra.get("force_scale")
     if fs is None:
-        return "No parameter of this model scales with the forces: no force-scale correction."
+        return "They were not corrected along the force scale."
     if not fs["corrected"]:
         return f"They were not corrected along the force scale: {fs['reason']}."
     return ("The Jacobian they come from was corrected along the force scale (every force coefficient "
             f"and torque-like parameter scaled together): {100 * fs['step']:g} % of scale changes the "
-            f"compared speed by {_f(fs['measured'])} rad/s RMS in model runs, where the fit's Jacobian "
-            f"predicted {_f(fs['predicted'])} (two runs per fit recording; the optimum is unchanged).")
+            f"fit residual (the compared speed, and the weighted motor torque where compared) by "
+            f"{_f(fs['measured'])} rad/s RMS in model runs, where the fit's Jacobian predicted "
+            f"{_f(fs['predicted'])} (two runs per fit recording; the optimum is unchanged).")
 
 
 def _status(res) -> str:
@@ -614,8 +619,10 @@ def _report_md(d, js) -> str:
           "Standard deviations are local (Jacobian) estimates, inflated x2 for the overlap of neighbouring "
           "samples. " + _force_scale_md(d.calibrated_) + " They measure the curvature of the valley the fit ended "
           "in, not how far that valley is from the truth: the fit cost is rippled by the impact bumps, and "
-          "on szdyn's benchmark grid (docs/diagnosis-oos-summary.md, column \"error in std\") effect "
-          "parameters were often several standard deviations off. Judge the fit, not the coefficients.", "",
+          "on szdyn's benchmark grid effect parameters were often several standard deviations off "
+          "(docs/diagnosis-oos-summary.md, column \"error in std\", before this correction; "
+          "docs/DIAGNOSIS-DESIGN.md, \"The reported standard deviations\", with it). Judge the fit, not "
+          "the coefficients.", "",
           f"Fit RMSE {_f(d.calibrated_.rmse_fit)} rad/s ({d.calibrated_.rmse_fit / d.floor_:.2f}x the floor); "
           f"the fit {_status(d.calibrated_)}.", "",
           *_staged_md(d),
