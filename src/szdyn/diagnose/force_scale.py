@@ -16,7 +16,7 @@ times (median 12) the change that runs along ``s`` measure, on the 25 named case
 ``bench/force_scale_std.py``, docs/DIAGNOSIS-DESIGN.md, "The reported standard deviations").
 ``(J^T J)^-1`` then holds the scale, and with it every torque and friction coefficient, far
 tighter than the recordings do: out of sample the effect parameters were a median 4.3 reported
-standard deviations off their truth, load_lift 19, slider_viscous 18, slider_stribeck 25
+standard deviations off their truth, load_lift 19, slider_viscous 18, slider_stribeck 23
 (docs/diagnosis-oos-summary.md).
 
 :func:`force_scale_secant` measures the model's change along ``s`` with two runs per fit
