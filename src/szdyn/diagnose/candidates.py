@@ -271,7 +271,8 @@ CANDIDATES: dict[str, Candidate] = {c.id: c for c in (
         signature=("band_speed",), force_scaled=True, probes=_viscous_probes, probes_only=False),
     Candidate(
         "slider_stribeck", "model",
-        (FitParam("mu_st", "1", 0.0, 1.5, 0.1, force_power=1.0), FitParam("v_st", "rad/s", 0.05, 3.0, 0.2, start=0.5,
+        (FitParam("mu_st", "1", 0.0, 1.5, 0.1, force_power=1.0),
+         FitParam("v_st", "rad/s", 0.05, 3.0, 0.2, start=0.5,
                                                       # log-spaced over the bounds: the column of
                                                       # mu_st depends strongly on v_st
                                                       screen_at=(0.1, 0.3, 1.0, 2.5))),
@@ -295,7 +296,8 @@ CANDIDATES: dict[str, Candidate] = {c.id: c for c in (
         signature=("direction", "load"), force_scaled=True),
     Candidate(
         "position_periodic", "model",
-        (FitParam("a_rev_s", "N*m", -0.15, 0.15, 0.01, force_power=1.0), FitParam("a_rev_c", "N*m", -0.15, 0.15, 0.01, force_power=1.0)),
+        (FitParam("a_rev_s", "N*m", -0.15, 0.15, 0.01, force_power=1.0),
+         FitParam("a_rev_c", "N*m", -0.15, 0.15, 0.01, force_power=1.0)),
         _periodic, "a_rev", lambda v: math.hypot(v["a_rev_s"], v["a_rev_c"]),
         "tau_b += -a_rev sin(q_b + phi_rev)",
         "residual periodic in the band angle, once per band revolution",

@@ -25,11 +25,12 @@ recording (``x +- FORCE_SCALE_STEP s``), puts it into the Jacobian by the least-
 every ``v`` orthogonal to ``s``), and recomputes the standard deviations from ``J'``. The fit
 itself (its optimum, its Jacobian for later steps) is unchanged; only what is reported changes.
 
-Measured on those 25 cases (in sample: the step was chosen on seed 35): effect parameters within
-2 reported std 5 -> 11, median error 5.3 -> 2.7 std; of the 13 cases of force-scaled effects 1 -> 6 and
-12.2 -> 2.6 std (these are diagnoses re-evaluated, not new ones). The others hardly move, and some force-scaled ones stay far off (slider_viscous
-35, position_periodic 35: 17 std): their error lies along other directions the Jacobian gets
-wrong, so the report still calls the std local.
+Measured on those 25 cases (diagnoses re-evaluated, not new ones; in sample: the step was chosen
+on seed 35): effect parameters within 2 reported std 5 -> 11, median error 5.3 -> 2.7 std; of
+the 13 cases of force-scaled effects 1 -> 6 and 12.2 -> 2.6 std. The others hardly move, and
+some force-scaled ones stay far off (slider_viscous 35, position_periodic 35: 17 std): their
+error lies along other directions the Jacobian gets wrong, so the report still calls the std
+local.
 """
 from __future__ import annotations
 
@@ -45,8 +46,8 @@ __all__ = ["FORCE_SCALE_STEP", "force_scale_direction", "force_scale_secant"]
 
 #: Half-width, in log force scale, of the central secant along the scale direction (+-5 %). The
 #: primaries' std hardly depend on it from 0.05 to 0.1 (within 5 % of each other on nine of the
-#: seed-35 cases); at 0.2 the slider_stribeck case's changed 7x (the nonlinearity of its low-speed peak),
-#: so the smaller step.
+#: seed-35 cases); at 0.2 the slider_stribeck case's changed 7x (the nonlinearity of its
+#: low-speed peak), so the smaller step.
 FORCE_SCALE_STEP = 0.05
 
 
@@ -102,7 +103,8 @@ def force_scale_secant(model: FeatureModel, hyp: Hypothesis, res: FitResult, whi
         # a failed run's feature is zeros: its "change" would be the whole band speed
         why = "a run along the scale failed"
     elif hyp.candidate is not None and not all(
-            math.isfinite(hyp.candidate.primary_of(hyp.candidate_values(res.x + a * step * s))) for a in (1, -1)):
+            math.isfinite(hyp.candidate.primary_of(hyp.candidate_values(res.x + a * step * s)))
+            for a in (1, -1)):
         # e.g. a drive compliance scaled below the rigid limit: the model jumps to a rigid drive
         why = "the effect turns into another model along the scale"
     if why is not None:
