@@ -5,6 +5,7 @@ record built to violate it. No simulation is run (fast).
 """
 import json
 import math
+import re
 
 import numpy as np
 import pytest
@@ -183,6 +184,20 @@ def test_undefined_quantities_fail_without_nan():
         assert res[c]["passed"] is False
         assert res[c]["value"] is None
         assert name in res[c]["detail"]["reason"]
+
+
+def test_c_needs_a_whole_second_of_hold():
+    """A hold shorter than the compared second makes (c) undefined with its reason, not a value
+    over part of the window."""
+    outputs, t_ramps = make_runs(thesis_like)
+    name = "ramp_0.5pi"
+    keep = outputs[name]["t"] <= t_ramps[name] + 0.3
+    outputs[name] = {k: v[keep] for k, v in outputs[name].items()}
+    c = strict_json(evaluate_fig10(outputs, t_ramps))["no_drop_after_ramp"]
+    assert c["passed"] is False and c["value"] is None
+    assert re.search(rf"{name}: the hold lasts 0\.(3|299) s, shorter than the 1 s compared", c["detail"]["reason"])
+    assert c["detail"]["runs"][name]["hold_interval"][1] == pytest.approx(outputs[name]["t"][-1])
+    assert evaluate_fig10(*make_runs(thesis_like))["no_drop_after_ramp"]["value"] is not None
 
 
 def test_nonfinite_rows_dropped_and_reported():

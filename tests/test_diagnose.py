@@ -1528,6 +1528,26 @@ def test_current_is_compared_unless_switched_off_and_an_unused_one_is_said(lift_
     assert "current column not used in" in capsys.readouterr().err
 
 
+def test_a_recording_without_its_load_is_named_before_the_diagnosis(null, monkeypatch, capsys):
+    """load_kg is optional in the manifest; a recording without it runs at the default load,
+    and the command says so at the start (not only in the report's heavy-look line)."""
+    from szdyn.diagnose import diagnosis
+
+    def stop(self, recs):
+        raise UserInputError("stopped before fitting")
+    monkeypatch.setattr(diagnosis.Diagnosis, "fit", stop)
+    data = null[2].parent / "data"
+    text = (data / "manifest.toml").read_text()
+    first = text.index("load_kg")
+    (data / "noload.toml").write_text(text[:first] + text[text.index("\n", first) + 1:])
+    capsys.readouterr()
+    assert run_main(["diagnose", str(data / "noload.toml"), "--out", str(data.parent / "x"), "--quiet"]) != 0
+    said = [line for line in capsys.readouterr().err.splitlines() if "no load_kg" in line]
+    assert len(said) == 1 and "m_b = 1 kg is used" in said[0]
+    assert run_main(["diagnose", str(data / "manifest.toml"), "--out", str(data.parent / "x"), "--quiet"]) != 0
+    assert "no load_kg" not in capsys.readouterr().err
+
+
 def test_current_only_on_heldout_recordings_is_not_used_and_the_report_says_so():
     """The torque must be among the fit recordings to take part: otherwise it is left out (no
     weights), and the report says why."""
@@ -1688,6 +1708,22 @@ def test_an_interrupted_diagnosis_resumes_from_its_saved_runs_to_the_same_answer
     assert "39 more model runs were loaded from a checkpoint" in (tmp_path / "r" / "report.md").read_text()
     # kept (--keep-runs): run again, every run is loaded and none made; then it is removed
     assert (tmp_path / "r" / "checkpoint" / "fingerprint.json").is_file()
+    # ... first interrupted while its results are written: the earlier set stays whole
+    from szdyn.diagnose import report
+
+    def no_plots(*a):
+        raise KeyboardInterrupt
+
+    def files():   # (an atomic write makes a new inode even where the bytes come out equal)
+        return {f: ((tmp_path / "r" / f).read_bytes(), (tmp_path / "r" / f).stat().st_ino)
+                for f in ("params.json", "report.md", "diagnosis.json")}
+    before = files()
+    real_plots = report._plots
+    monkeypatch.setattr(report, "_plots", no_plots)   # after params.json, before report.md
+    assert run_main(["diagnose", man, "--out", res, "--keep-runs", *SMALL]) == 130
+    monkeypatch.setattr(report, "_plots", real_plots)
+    assert files() == before
+    assert not list((tmp_path / "r").glob(".partial-*"))
     assert run_main(["diagnose", man, "--out", res, *SMALL]) == 0
     d = json.loads((tmp_path / "r" / "diagnosis.json").read_text())
     assert d["cost"]["model_runs"] == 0 and d["cost"]["resumed_runs"] == d0["cost"]["model_runs"]

@@ -60,7 +60,16 @@ def test_a_failing_block_moves_nothing_and_a_file_dest_is_refused(tmp_path):
         with staged_output(dest) as stage:
             (stage / "a.csv").write_text("new")
             raise RuntimeError("a run failed")
-    assert list(dest.iterdir()) == []
+    assert not dest.exists()            # made by the call, empty: removed (nested ones too)
+    with pytest.raises(RuntimeError):
+        with staged_output(tmp_path / "new" / "deeper"):
+            raise RuntimeError("a run failed")
+    assert list(tmp_path.iterdir()) == []
+    dest.mkdir()                        # there before the call: kept, as it was
+    with pytest.raises(RuntimeError):
+        with staged_output(dest):
+            raise RuntimeError("a run failed")
+    assert dest.is_dir() and list(dest.iterdir()) == []
     (tmp_path / "f").write_text("x")
     for d in (tmp_path / "f", tmp_path / "f" / "sub"):
         with pytest.raises(UserInputError, match="f is a file"):

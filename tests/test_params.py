@@ -138,6 +138,7 @@ def test_message_format(ps):
     (dict(mu_wk=0.95), "mu_wk"),                     # mu_wk > mu_ws
     (dict(n_circles=0), "n_circles"),
     (dict(n_circles=12.5), "n_circles"),
+    (dict(n_circles=10_001), "n_circles.*at most 10000"),   # a mistyped N_c, before any memory is taken
 ])
 def test_cross_checks(ps, changes, key):
     with pytest.raises(ParameterError, match=key):

@@ -228,6 +228,8 @@ def test_unknown_effect_names_it_and_suggests(tmp_path):
     (["--out", "X", "--seed", "-1"], "seed"),
     (["--out", "X", "--bogus"], "unrecognized"),
     (["--out", "X", "--dt", "1e-3"], "--dt must be <= 0.0005 s"),
+    (["--out", "X", "--n-circles", "100000000"], "up to 10000"),
+    (["--out", "X", "--dt", "-1e-4"], "--dt must be > 0"),          # a negative in e-notation is a value
 ])
 def test_cli_mistakes_are_user_errors(tmp_path, argv, match):
     argv = [str(tmp_path / a) if a == "X" else a for a in argv]

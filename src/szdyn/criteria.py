@@ -260,8 +260,20 @@ def _crit_c(runs, window_s, tol, min_samples):
         m_ramp = (t >= t0) & (t <= t_ramp)
         before, nb_ = _mean(rel, m_ramp)
         after, na = _mean(rel, (t > t_ramp) & (t <= t_ramp + window_s))
-        d = {"ramp_interval": [t0, t_ramp], "hold_interval": [t_ramp, t_ramp + window_s],
+        t_end = float(t[-1]) if t.size else t_ramp
+        d = {"ramp_interval": [t0, t_ramp], "hold_interval": [t_ramp, min(t_ramp + window_s, t_end)],
              "samples_ramp": nb_, "samples_hold": na}
+        # the means must cover the whole window: over a shorter one (a hold cut at 0.3 s, say)
+        # they would measure another quantity than the criterion states
+        spacing = float(np.median(np.diff(t))) if t.size > 1 else 0.0
+        short = [f"the {part} lasts {span:.3g} s, shorter than the {window_s:g} s compared"
+                 for part, span in (("ramp", t_ramp - (float(t[0]) if t.size else t_ramp)),
+                                    ("hold", t_end - t_ramp))
+                 if span < window_s - spacing]
+        if short:
+            reasons.append(f"{name}: {' and '.join(short)}")
+            per_run[name] = d
+            continue
         if nb_ < min_samples or na < min_samples:
             reasons.append(f"{name}: too few samples ({nb_} ramp, {na} hold; need "
                            f"{min_samples})")

@@ -21,6 +21,7 @@ from dataclasses import dataclass
 
 __all__ = [
     "Default", "PARAMETER_DEFAULTS", "GEOMETRY_DEFAULTS", "N_CIRCLES_DEFAULT", "DEFAULT_N_CIRCLES",
+    "MAX_N_CIRCLES",
     "ALL_DEFAULTS", "PARAMETER_DOCS", "default_values", "default_geometry", "default_parameters",
     "omni_wheel_inertia_estimate",
 ]
@@ -212,6 +213,9 @@ N_CIRCLES_DEFAULT = Default(
     "n_circles", 100, "1", "number of small circles N_c (structural; sets state length)",
     "thesis ch.4 s.2: N_d = 100 ('arbitrarily chosen'); note 100 is not a multiple of 8 rollers")
 DEFAULT_N_CIRCLES: int = int(N_CIRCLES_DEFAULT.value)
+#: Largest N_c accepted anywhere (a guard, not physics): 100x the thesis's. A run's state, memory
+#: and time grow with N_c; a mistyped 1e8 would otherwise take gigabytes before any message.
+MAX_N_CIRCLES: int = 10_000
 
 GEOMETRY_DEFAULTS: tuple[Default, ...] = (
     Default("band_height", 45.72e-3, "m", "band height H_B including teeth",

@@ -83,7 +83,8 @@ def staged_output(dest, last: Sequence[str] = ()) -> Iterator[Path]:
     Yields
     ------
     Path
-        The staging directory (hidden, ``.partial-*``; removed at the end either way).
+        The staging directory (hidden, ``.partial-*``; removed at the end either way, and with
+        it, after a failure, the directories this call created, where they are empty).
 
     Raises
     ------
@@ -97,8 +98,10 @@ def staged_output(dest, last: Sequence[str] = ()) -> Iterator[Path]:
     for p in (dest, *dest.parents):   # (mkdir would fail on a file anywhere above, as a traceback)
         if p.exists() and not p.is_dir():
             raise UserInputError(f"{p} is a file, not a directory")
+    made = [p for p in (dest, *dest.parents) if not p.exists()]   # innermost first
     dest.mkdir(parents=True, exist_ok=True)
     stage = Path(tempfile.mkdtemp(prefix=".partial-", dir=dest))
+    done = False
     try:
         yield stage
         order = {name: k + 1 for k, name in enumerate(last)}
@@ -117,5 +120,13 @@ def staged_output(dest, last: Sequence[str] = ()) -> Iterator[Path]:
             target = dest / rel
             target.parent.mkdir(parents=True, exist_ok=True)
             os.replace(stage / rel, target)
+        done = True
     finally:
         shutil.rmtree(stage, ignore_errors=True)
+        if not done:
+            # a failed first run leaves no empty output directory behind (what was there stays)
+            for p in made:
+                try:
+                    p.rmdir()
+                except OSError:
+                    break

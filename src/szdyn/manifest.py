@@ -48,6 +48,7 @@ from pathlib import Path
 
 import numpy as np
 
+from szdyn.defaults import MAX_N_CIRCLES
 from szdyn.errors import UserInputError
 
 __all__ = ["ManifestError", "ManifestEntry", "Manifest", "read_manifest", "RECORDING_KEYS"]
@@ -217,7 +218,7 @@ def read_manifest(path, *, check_files: bool = True) -> Manifest:
         line and column from :mod:`tomllib`).
     """
     path = Path(path)
-    nm = path.name
+    nm = str(path)   # as given: "manifest.toml" alone would not say which of several
     try:
         raw = path.read_bytes()
         # editors on Windows save UTF-8 with a byte-order mark; TOML does not allow one, the
@@ -276,8 +277,9 @@ def read_manifest(path, *, check_files: bool = True) -> Manifest:
             cond["load_kg"] = float(v)
         if "n_circles" in r:
             v = r["n_circles"]
-            if isinstance(v, bool) or not isinstance(v, int) or v <= 0:
-                raise ManifestError(f"{label}: 'n_circles' must be a positive integer, got {v!r}")
+            if isinstance(v, bool) or not isinstance(v, int) or not 0 < v <= MAX_N_CIRCLES:
+                raise ManifestError(f"{label}: 'n_circles' must be a positive integer up to {MAX_N_CIRCLES} "
+                                    f"(the thesis uses 100), got {v!r}")
             cond["n_circles"] = int(v)
         if "note" in r:
             if not isinstance(r["note"], str):

@@ -25,6 +25,7 @@ import numpy as np
 
 from .io import write_json
 
+from szdyn.defaults import MAX_N_CIRCLES
 from szdyn.errors import ParameterError
 from szdyn.geometry import BandGeometry
 
@@ -111,6 +112,9 @@ def _check_n_circles(n_circles) -> int:
     if not ok:
         raise ParameterError(f"parameter 'n_circles' (N_c) must be a positive integer, "
                              f"got {n_circles!r}")
+    if int(n_circles) > MAX_N_CIRCLES:
+        raise ParameterError(f"parameter 'n_circles' (N_c) must be at most {MAX_N_CIRCLES} (the thesis uses "
+                             f"100; a run's memory and time grow with N_c), got {n_circles!r}")
     return int(n_circles)
 
 

@@ -15,6 +15,7 @@ import textwrap
 import warnings
 from pathlib import Path
 
+from .cli import Parser
 from .errors import ParameterError, SimulationError, UserInputError, interrupted
 
 METHODS = ("rk4", "heun", "dopri5")
@@ -77,10 +78,30 @@ def add_parameter_options(ap: argparse.ArgumentParser) -> None:
     ap.add_argument("--n-circles", type=_positive_int, help="number of small circles N_c (default: from the parameter set)")
 
 
+#: The step options' defaults, and the methods that use each.
+STEP_DEFAULTS = {"dt": 1e-5, "rtol": 1e-5, "atol": 1e-8}
+_STEP_METHODS = {"dt": ("heun", "rk4"), "rtol": ("dopri5",), "atol": ("dopri5",)}
+
+
+def resolve_step_options(args) -> None:
+    """Fill ``args.dt``, ``rtol``, ``atol`` with their defaults where not given, and warn about
+    one given that ``args.method`` does not use (``--dt`` with dopri5 would otherwise be ignored
+    without a word)."""
+    unused = [f"--{k}" for k, used_by in _STEP_METHODS.items()
+              if getattr(args, k) is not None and args.method not in used_by]
+    if unused:
+        warnings.warn(f"{' and '.join(unused)} not used by --method {args.method} (--dt is for heun and rk4, "
+                      "--rtol and --atol for dopri5)", stacklevel=2)
+    for k, v in STEP_DEFAULTS.items():
+        if getattr(args, k) is None:
+            setattr(args, k, v)
+
+
 def build_parser() -> argparse.ArgumentParser:
     from .scenarios import SCENARIOS
 
-    ap = argparse.ArgumentParser(
+    ap = Parser(
+        "simulate",
         prog="python -m szdyn.run",
         # filled here: the raw formatter, which keeps the commands' list in columns, does not wrap
         description=textwrap.fill(
@@ -103,9 +124,10 @@ def build_parser() -> argparse.ArgumentParser:
                     help="parallel processes (default: one per core)")
     ap.add_argument("--method", choices=METHODS, default="dopri5",
                     help="integrator: heun (thesis's modified Euler), rk4 (fixed step), dopri5 (adaptive); default %(default)s")
-    ap.add_argument("--dt", type=_positive_float, default=1e-5, help="fixed step for heun/rk4 in s (default %(default)s)")
-    ap.add_argument("--rtol", type=_tolerance, default=1e-5, help="dopri5 relative tolerance (default %(default)s)")
-    ap.add_argument("--atol", type=_positive_float, default=1e-8, help="dopri5 absolute tolerance (default %(default)s)")
+    # (default None: resolve_step_options tells an option given for another method from a default)
+    ap.add_argument("--dt", type=_positive_float, help=f"fixed step for heun/rk4 in s (default {STEP_DEFAULTS['dt']})")
+    ap.add_argument("--rtol", type=_tolerance, help=f"dopri5 relative tolerance (default {STEP_DEFAULTS['rtol']})")
+    ap.add_argument("--atol", type=_positive_float, help=f"dopri5 absolute tolerance (default {STEP_DEFAULTS['atol']})")
     ap.add_argument("--save-dt", type=_positive_float, default=1e-3, help="output sampling interval in s (default %(default)s)")
     ap.add_argument("--omega-hold", type=_positive_float, default=math.pi,
                     help="wheel speed at the end of each ramp, rad/s (default pi)")
@@ -160,6 +182,7 @@ def simulate_command(argv) -> int:
     from .thesis import CRITERIA_LABELS, Integration, run_fig10
 
     args = build_parser().parse_args(argv)
+    resolve_step_options(args)
     params = load_parameters(args)
     if "contact_model" in _parse_set(args.set):
         raise UserInputError("--set contact_model: the transmission is chosen with --contact "
@@ -192,7 +215,8 @@ def _verdict(criterion: dict) -> str:
 def regime_command(argv) -> int:
     from .regime import SECOND_AXES, run_regime_map
 
-    ap = argparse.ArgumentParser(
+    ap = Parser(
+        "regime",
         prog="python -m szdyn.run regime",
         description="Regime map: roller interference against a second parameter; each case ramps the wheel "
                     "to a held speed and is classified stick / partial slip / full slip. Parallel and resumable "

@@ -60,6 +60,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .cli import Parser
 from .errors import ParameterError, SimulationError, UserInputError, interrupted
 from .io import atomic_write_bytes, atomic_write_text, write_json
 from .metrics import Metric, evaluate_metrics, metric_unit
@@ -769,7 +770,8 @@ def _units():
 
 # --------------------------------------------------------------------------- CLI
 def build_parser() -> argparse.ArgumentParser:
-    ap = argparse.ArgumentParser(
+    ap = Parser(
+        "sweep",
         prog="python -m szdyn.run sweep",
         description="Run a parameter sweep described by a TOML spec (see "
                     "examples/sweep_example.toml). Writes cases.csv (+ columns.json), one .npz "

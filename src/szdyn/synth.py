@@ -96,6 +96,8 @@ from collections.abc import Callable
 
 import numpy as np
 
+from szdyn.cli import Parser
+from szdyn.defaults import MAX_N_CIRCLES
 from szdyn.errors import SimulationError, UserInputError
 from szdyn.heldout import least_hiding, split_features
 from szdyn.io import atomic_write_text, staged_output, write_json
@@ -402,8 +404,9 @@ def synthesize(out_dir, effect: str = "none", amplitude=None, seed: int = 0,
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
         raise SynthError(f"seed must be a non-negative integer, got {seed!r}")
     seed = int(seed)
-    if isinstance(n_circles, bool) or not isinstance(n_circles, (int, np.integer)) or n_circles < 1:
-        raise SynthError(f"n_circles must be a positive integer, got {n_circles!r}")
+    if (isinstance(n_circles, bool) or not isinstance(n_circles, (int, np.integer))
+            or not 1 <= n_circles <= MAX_N_CIRCLES):
+        raise SynthError(f"n_circles must be a positive integer up to {MAX_N_CIRCLES}, got {n_circles!r}")
     n_circles = int(n_circles)
     loads = [float(x) for x in loads_kg]
     if not loads or not all(math.isfinite(x) and x > 0 for x in loads):
@@ -580,11 +583,6 @@ def _with_fields(sensor, changes):
 
 
 # --------------------------------------------------------------------------- CLI
-class _Parser(argparse.ArgumentParser):
-    def error(self, message):
-        raise SynthError(f"synth: {message}")
-
-
 def _loads(text: str):
     try:
         vals = [float(x) for x in text.split(",") if x.strip()]
@@ -596,7 +594,7 @@ def _loads(text: str):
 
 
 def _build_parser() -> argparse.ArgumentParser:
-    ap = _Parser(prog="python -m szdyn.run synth",
+    ap = Parser("synth", prog="python -m szdyn.run synth",
                  description="Write synthetic recordings (CSV + manifest.toml + truth.json) from a "
                              "perturbed truth model with one concealed effect.")
     ap.add_argument("--out", type=Path, required=True, help="output directory")
@@ -638,8 +636,9 @@ def synth_command(argv) -> int:
     check_effect(args.effect)
     if args.seed < 0:
         raise SynthError(f"synth: --seed must be >= 0, got {args.seed}")
-    if args.n_circles is not None and args.n_circles < 1:
-        raise SynthError(f"synth: --n-circles must be a positive integer, got {args.n_circles}")
+    if args.n_circles is not None and not 1 <= args.n_circles <= MAX_N_CIRCLES:
+        raise SynthError(f"synth: --n-circles must be a positive integer up to {MAX_N_CIRCLES} (the thesis "
+                         f"uses 100), got {args.n_circles}")
     if args.amplitude is not None and not math.isfinite(args.amplitude):
         raise SynthError(f"synth: --amplitude must be finite, got {args.amplitude}")
     if not (math.isfinite(args.dt) and args.dt > 0):

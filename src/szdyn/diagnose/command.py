@@ -1,27 +1,22 @@
 """``python -m szdyn.run diagnose MANIFEST.toml --out DIR``."""
 from __future__ import annotations
 
-import argparse
 import sys
 import time
 from dataclasses import replace
 from pathlib import Path
 
+from ..cli import Parser
 from ..errors import UserInputError, interrupted
 
 __all__ = ["diagnose_command"]
-
-
-class _Parser(argparse.ArgumentParser):
-    def error(self, message):
-        raise UserInputError(f"diagnose: {message}")
 
 
 def _build_parser():
     from .candidates import CANDIDATES
     from .diagnosis import FLOOR_SPREAD, SECOND_LOOK_STEPS, STAGED_RATIO
 
-    ap = _Parser(prog="python -m szdyn.run diagnose",
+    ap = Parser("diagnose", prog="python -m szdyn.run diagnose",
                  description="Calibrate the model to recordings, locate the mismatch, name the missing "
                              "effect from a library, refit and report (report.md, diagnosis.json, PNGs, "
                              "params.json).")
@@ -163,6 +158,13 @@ def diagnose_command(argv) -> int:
     if lacking:
         print(f"diagnose: torque constant given but no current column in {', '.join(lacking)}",
               file=sys.stderr)
+    no_load = [e.name for e in man.entries if "load_kg" not in e.conditions]
+    if no_load:
+        # said even with --quiet: the slider friction scales with the load, so a forgotten
+        # load_kg changes every fitted friction coefficient
+        from ..defaults import default_values
+        print(f"diagnose: no load_kg for {', '.join(no_load)}: the model's default load m_b = "
+              f"{default_values()['m_b']:g} kg is used (set load_kg per [[recording]])", file=sys.stderr)
     if not man.heldout:
         held = choose_heldout(recs)
         recs = with_heldout(recs, held)

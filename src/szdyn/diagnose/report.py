@@ -1,6 +1,7 @@
 """Write a fitted :class:`~szdyn.diagnose.diagnosis.Diagnosis`: JSON, Markdown, PNGs, parameters.
 
-Files in ``out`` (each written atomically):
+Files in ``out`` (written into a staging directory and moved in together at the end,
+``diagnosis.json`` last, so that an interrupted run leaves the previous set whole):
 
 * ``diagnosis.json`` — machine-readable result (schema of issue 5, plus details);
 * ``report.md`` — what was compared, where the mismatch is, which effect, its parameters with
@@ -17,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..io import atomic_write_text, write_json
+from ..io import atomic_write_text, staged_output, write_json
 from ..plots import _pyplot, save_png
 from .amplitude import AMPLITUDE_GRID
 from .candidates import CANDIDATES, FIXED_UNIDENTIFIED, primary_std
@@ -789,12 +790,13 @@ def _fit_panels(plt, d, idx, measured, before, after, label, ylabel, height, pat
 
 def write_report(d, out) -> dict:
     """Write every output file of a fitted diagnosis into ``out``; return the JSON dict."""
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
     js = _to_json(d)
-    updated_parameters(d).to_json(out / "params.json")
-    _plots(d, out)
-    atomic_write_text(out / "report.md", _report_md(d, js))
-    js = _clean(js)
-    write_json(out / "diagnosis.json", js)
+    # staged, then moved in together: an interruption part-way leaves the previous run's set
+    # whole (a new params.json beside an old report would be taken for this run's answer)
+    with staged_output(out, last=("diagnosis.json",)) as stage:
+        updated_parameters(d).to_json(stage / "params.json")
+        _plots(d, stage)
+        atomic_write_text(stage / "report.md", _report_md(d, js))
+        js = _clean(js)
+        write_json(stage / "diagnosis.json", js)
     return js
