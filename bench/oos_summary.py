@@ -169,8 +169,9 @@ def markdown(s: dict) -> str:
          f"whose held-out error before was at least {REACHABLE_FLOORS:g} noise floors (the floor "
          "is stored with seed 13 and from seed 22 on: that column leaves out seeds 14-21). "
          "\"error in std\": the parameter's error in the standard deviations the diagnosis "
-         f"reported for it (stored from seed 14 on; every seed up to 37 ran before the std were "
-         f"corrected along the force scale); an honest std would have about 95 % of the errors "
+         f"reported for it (stored from seed 14 on; every case up to seed 37 ran before the std were "
+         f"corrected along the force scale, except drive_compliance 37 and wheel_band_traction 37, "
+         f"run again with it); an honest std would have about 95 % of the errors "
          f"within {Z_COVERED:g}.", "",
          "| effect | named | seeds missed | parameter within 15 % | median parameter error "
          f"| held-out >= 3x | ... where reachable | median held-out gain | error within {Z_COVERED:g} std "
