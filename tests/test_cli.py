@@ -73,7 +73,7 @@ def test_bad_input_is_a_one_line_error(argv, expect, capsys, tmp_path):
 
 @pytest.mark.parametrize("argv", [["--dt", "0"], ["--method", "euler"], ["--n-circles", "-3"], ["--rtol", "nan"],
                                   ["--rtol", "5"], ["--dt", "-1e-4"], ["regime", "--omega-hold", "nan"],
-                                  ["sweep", "--bogus"]])
+                                  ["sweep", "x.toml", "--bogus"]])
 def test_bad_options_are_rejected_by_the_parser_in_one_line(argv, capsys):
     assert main(argv) == 2
     err = capsys.readouterr().err.strip()
@@ -82,6 +82,7 @@ def test_bad_options_are_rejected_by_the_parser_in_one_line(argv, capsys):
     # a negative value in e-notation reaches the option's own check (argparse < 3.14 took it
     # for an option and said "expected one argument")
     assert "expected one argument" not in err
+    assert next(a for a in argv if a.startswith("--")) in err        # the offending option, named
 
 
 def test_a_step_option_the_method_does_not_use_is_said_and_defaults_fill_the_rest():

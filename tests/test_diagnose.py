@@ -1543,7 +1543,12 @@ def test_a_recording_without_its_load_is_named_before_the_diagnosis(null, monkey
     capsys.readouterr()
     assert run_main(["diagnose", str(data / "noload.toml"), "--out", str(data.parent / "x"), "--quiet"]) != 0
     said = [line for line in capsys.readouterr().err.splitlines() if "no load_kg" in line]
-    assert len(said) == 1 and "m_b = 1 kg is used" in said[0]
+    assert len(said) == 1 and "(m_b = 1 kg used): the load is the model's default" in said[0]
+    # a [model] m_b is the load of such a recording, and is named as such
+    (data / "noload.toml").write_text("[model]\nm_b = 2.5\n" + text[:first] + text[text.index("\n", first) + 1:])
+    assert run_main(["diagnose", str(data / "noload.toml"), "--out", str(data.parent / "x"), "--quiet"]) != 0
+    said = [line for line in capsys.readouterr().err.splitlines() if "no load_kg" in line]
+    assert len(said) == 1 and "(m_b = 2.5 kg used): the load is [model] m_b" in said[0]
     assert run_main(["diagnose", str(data / "manifest.toml"), "--out", str(data.parent / "x"), "--quiet"]) != 0
     assert "no load_kg" not in capsys.readouterr().err
 

@@ -124,7 +124,9 @@ def test_tiny_sweep_end_to_end(tmp_path):
     # refused before any case runs: each would give metrics from 2 samples
     ("[axes]\n\"integrator.save_dt\" = [0.001, 0.1]\n",
      ["case 1 (integrator.save_dt = 0.1)", "at least 10 are needed"]),
-    ("[axes]\nn_circles = [16, 100000000]\n", ["case 1 (n_circles = 100000000)", "GiB of output"]),
+    ("[axes]\nt_end = [0.2, 100000.0]\n", ["case 1 (t_end = 100000.0)", "GiB of output"]),
+    # a mistyped N_c: refused by the cap on it, naming the axis
+    ("[axes]\nn_circles = [16, 100000000]\n", ["[axes] 'n_circles'", "at most 10000"]),
 ])
 def test_unknown_keys_and_bad_values_name_the_key_and_suggest(tmp_path, extra, expect):
     spec = write_spec(tmp_path, BASE + extra)

@@ -263,15 +263,13 @@ def _crit_c(runs, window_s, tol, min_samples):
         t_end = float(t[-1]) if t.size else t_ramp
         d = {"ramp_interval": [t0, t_ramp], "hold_interval": [t_ramp, min(t_ramp + window_s, t_end)],
              "samples_ramp": nb_, "samples_hold": na}
-        # the means must cover the whole window: over a shorter one (a hold cut at 0.3 s, say)
-        # they would measure another quantity than the criterion states
+        # the hold's mean must cover the whole window: over a shorter one (a hold cut at 0.3 s,
+        # say) it would measure another quantity than the criterion states (a ramp shorter than
+        # the window is the whole ramp, and ramp_interval says so)
         spacing = float(np.median(np.diff(t))) if t.size > 1 else 0.0
-        short = [f"the {part} lasts {span:.3g} s, shorter than the {window_s:g} s compared"
-                 for part, span in (("ramp", t_ramp - (float(t[0]) if t.size else t_ramp)),
-                                    ("hold", t_end - t_ramp))
-                 if span < window_s - spacing]
-        if short:
-            reasons.append(f"{name}: {' and '.join(short)}")
+        if t_end - t_ramp < window_s - spacing:
+            reasons.append(f"{name}: the hold lasts {t_end - t_ramp:.3g} s, shorter than the {window_s:g} s "
+                           "compared")
             per_run[name] = d
             continue
         if nb_ < min_samples or na < min_samples:

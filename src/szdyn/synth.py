@@ -625,7 +625,8 @@ def _existing_outputs(out: Path) -> list:
 
 
 def synth_command(argv) -> int:
-    """``python -m szdyn.run synth ...``; returns the exit code (mistakes raise SynthError)."""
+    """``python -m szdyn.run synth ...``; returns the exit code (mistakes raise
+    :class:`~szdyn.errors.UserInputError`: SynthError, or the parser's own)."""
     argv = list(argv)
     if "--list-effects" in argv:
         for e in EFFECTS.values():

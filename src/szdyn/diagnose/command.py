@@ -158,13 +158,17 @@ def diagnose_command(argv) -> int:
     if lacking:
         print(f"diagnose: torque constant given but no current column in {', '.join(lacking)}",
               file=sys.stderr)
-    no_load = [e.name for e in man.entries if "load_kg" not in e.conditions]
+    no_load = {}    # the load used -> recordings without load_kg
+    for e in man.entries:
+        if "load_kg" not in e.conditions:
+            no_load.setdefault(man.parameters(e)["m_b"], []).append(e.name)
     if no_load:
         # said even with --quiet: the slider friction scales with the load, so a forgotten
         # load_kg changes every fitted friction coefficient
-        from ..defaults import default_values
-        print(f"diagnose: no load_kg for {', '.join(no_load)}: the model's default load m_b = "
-              f"{default_values()['m_b']:g} kg is used (set load_kg per [[recording]])", file=sys.stderr)
+        src = "[model] m_b" if "m_b" in man.model else "the model's default"
+        print(f"diagnose: no load_kg for " + "; ".join(f"{', '.join(names)} (m_b = {m:g} kg used)"
+                                                       for m, names in no_load.items())
+              + f": the load is {src} (set load_kg per [[recording]])", file=sys.stderr)
     if not man.heldout:
         held = choose_heldout(recs)
         recs = with_heldout(recs, held)
