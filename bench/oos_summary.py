@@ -171,7 +171,7 @@ def markdown(s: dict) -> str:
          "\"error in std\": the parameter's error in the standard deviations the diagnosis "
          f"reported for it (stored from seed 14 on; every case up to seed 37 ran before the std were "
          f"corrected along the force scale, except drive_compliance 37 and wheel_band_traction 37, "
-         f"run again with it); an honest std would have about 95 % of the errors "
+         f"run again with it; seed 38 ran with it); an honest std would have about 95 % of the errors "
          f"within {Z_COVERED:g}.", "",
          "| effect | named | seeds missed | parameter within 15 % | median parameter error "
          f"| held-out >= 3x | ... where reachable | median held-out gain | error within {Z_COVERED:g} std "
