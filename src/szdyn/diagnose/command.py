@@ -166,7 +166,7 @@ def diagnose_command(argv) -> int:
         # said even with --quiet: the slider friction scales with the load, so a forgotten
         # load_kg changes every fitted friction coefficient
         src = "[model] m_b" if "m_b" in man.model else "the model's default"
-        print(f"diagnose: no load_kg for " + "; ".join(f"{', '.join(names)} (m_b = {m:g} kg used)"
+        print("diagnose: no load_kg for " + "; ".join(f"{', '.join(names)} (m_b = {m:g} kg used)"
                                                        for m, names in no_load.items())
               + f": the load is {src} (set load_kg per [[recording]])", file=sys.stderr)
     if not man.heldout:
