@@ -79,7 +79,7 @@ def test_bad_options_are_rejected_by_the_parser_in_one_line(argv, capsys):
     err = capsys.readouterr().err.strip()
     assert err.startswith("szdyn: error: ") and "--help" in err
     assert len(err.splitlines()) == 1 and "Traceback" not in err
-    # a negative value in e-notation reaches the option's own check (argparse < 3.14 took it
+    # a negative value in e-notation reaches the option's own check (argparse's own pattern took it
     # for an option and said "expected one argument")
     assert "expected one argument" not in err
     assert next(a for a in argv if a.startswith("--")) in err        # the offending option, named

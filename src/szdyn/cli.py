@@ -3,8 +3,8 @@
 * A mistake is one line, ``szdyn: error: COMMAND: what was wrong`` (a :class:`UserInputError`
   that :func:`szdyn.run.main` prints), not argparse's usage block followed by its message.
 * A negative number in e-notation (``--dt -1e-4``) is a value, so the option's own check says
-  what it expects; argparse before Python 3.14 took ``-1e-4`` for an unknown option and said
-  only "expected one argument".
+  what it expects; argparse's own pattern (Python 3.11, as installed here) took ``-1e-4`` for an
+  unknown option and said only "expected one argument".
 """
 from __future__ import annotations
 
@@ -30,9 +30,9 @@ class Parser(argparse.ArgumentParser):
     def __init__(self, command: str, **kwargs):
         super().__init__(**kwargs)
         self.command = command
-        # Python 3.14's pattern (3.11's matched only plain decimals such as -3 or -0.5; it is
-        # set per parser in __init__). No command has an option that starts with a digit, so
-        # nothing else is read as a value.
+        # any "-" followed by a digit or ".digit" (3.11's own pattern, set per parser in
+        # __init__, matched only plain decimals such as -3 or -0.5). No command has an option
+        # that starts with a digit, so nothing else is read as a value.
         self._negative_number_matcher = re.compile(r"^-\.?\d")
 
     def error(self, message):
