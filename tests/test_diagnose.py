@@ -1306,6 +1306,41 @@ def test_a_probe_addition_is_not_refitted_after_a_settler(viscous, tmp_path, mon
     assert d0["cost"]["model_runs"] < d["cost"]["model_runs"]
 
 
+def test_a_sensor_settler_does_not_spare_a_model_side_probe_addition(viscous, tmp_path, monkeypatch):
+    """SENSOR_SETTLES_RESCUES False: a sensor candidate does not spare a model-side addition of
+    the probe screening, nor skip its further starts. Made to happen in the small case (the drag
+    settles, encoder_scale's probe is added) by swapping the two candidates' kinds: the drag
+    then counts as a sensor term and encoder_scale as a model-side one, which is refitted with
+    every start; the JSON and the report say why. With SENSOR_SETTLES_RESCUES True it is spared,
+    as the real kinds have it."""
+    from dataclasses import replace
+
+    from szdyn.diagnose import diagnosis
+
+    _, d0, out = viscous
+    added = list(dict.fromkeys(q["id"] for q in d0["probing"] if q.get("added")))
+    assert added == ["encoder_scale"], added
+    assert d0["sensor_not_settling"] == {}     # the drag is model-side: it spares
+    for cid, kind in (("slider_viscous", "sensor"), ("encoder_scale", "model")):
+        monkeypatch.setitem(diagnosis.CANDIDATES, cid, replace(diagnosis.CANDIDATES[cid], kind=kind))
+    man = out.parent / "data" / "manifest.toml"
+    assert run_main(["diagnose", str(man), "--out", str(tmp_path / "s"), *SMALL]) == 0
+    d = json.loads((tmp_path / "s" / "diagnosis.json").read_text())
+    assert d["not_refitted"] == {} and d["sensor_not_settling"] == {"encoder_scale": "slider_viscous"}
+    e = next(e for e in d["effects"] if e["id"] == "encoder_scale")
+    assert e["refitted"] and "no further starts" not in (e["fit_status"] or "")
+    assert ("`encoder_scale` was refitted with all its starts although `slider_viscous` already fitted"
+            in (tmp_path / "s" / "report.md").read_text())
+    assert d["selected"] == d0["selected"] == ["slider_viscous"]
+    assert d["cost"]["model_runs"] > d0["cost"]["model_runs"]
+
+    monkeypatch.setattr(diagnosis, "SENSOR_SETTLES_RESCUES", True)
+    assert run_main(["diagnose", str(man), "--out", str(tmp_path / "t"), *SMALL]) == 0
+    d = json.loads((tmp_path / "t" / "diagnosis.json").read_text())
+    assert d["sensor_not_settling"] == {} and set(d["not_refitted"]) == {"encoder_scale"}
+    assert d["not_refitted"]["encoder_scale"]["by"] == "slider_viscous"
+
+
 def test_a_spared_probe_addition_is_refitted_once_its_settler_settles_nothing(viscous, tmp_path, monkeypatch):
     """A settler that settles nothing by the decision (the ablation or the held-out phases judged
     it again): the probe addition it spared is refitted then (5f), by the settled rule again (one
@@ -1729,7 +1764,10 @@ def test_an_interrupted_diagnosis_resumes_from_its_saved_runs_to_the_same_answer
     monkeypatch.setattr(report, "_plots", real_plots)
     assert files() == before
     assert not list((tmp_path / "r").glob(".partial-*"))
+    # a plot of an earlier run with a current column, which these recordings lack: removed
+    (tmp_path / "r" / "torque_fit.png").write_bytes(b"an earlier run's")
     assert run_main(["diagnose", man, "--out", res, *SMALL]) == 0
+    assert not (tmp_path / "r" / "torque_fit.png").exists()
     d = json.loads((tmp_path / "r" / "diagnosis.json").read_text())
     assert d["cost"]["model_runs"] == 0 and d["cost"]["resumed_runs"] == d0["cost"]["model_runs"]
     assert d["selected"] == d0["selected"] and d["fit"] == d0["fit"]

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import os
+from pathlib import Path
 
 import pytest
 
@@ -33,6 +34,46 @@ def test_staged_files_are_moved_in_with_last_ones_last_and_old_files_kept(tmp_pa
     assert (dest / "a.json").read_text() == "a.json" and (dest / "sub" / "deeper" / "x.csv").is_file()
     assert (dest / "sub" / "old.csv").read_text() == "old" and (dest / "keep.txt").read_text() == "mine"
     assert sorted(p.name for p in dest.iterdir()) == ["a.json", "b.csv", "keep.txt", "sub", "z.csv"]
+
+
+def test_a_file_the_set_owns_but_the_new_set_lacks_is_removed_before_the_last(tmp_path, monkeypatch):
+    dest = tmp_path / "out"
+    dest.mkdir()
+    for name in ("a.json", "plot.png", "optional.png", "keep.txt"):
+        (dest / name).write_text("previous")
+    events = []
+    real_replace, real_unlink = os.replace, Path.unlink
+
+    def spy_replace(src, dst):
+        events.append(("moved", os.path.relpath(dst, dest)))
+        real_replace(src, dst)
+
+    def spy_unlink(self, *a, **k):
+        events.append(("removed", os.path.relpath(self, dest)))
+        real_unlink(self, *a, **k)
+
+    monkeypatch.setattr(os, "replace", spy_replace)
+    monkeypatch.setattr(Path, "unlink", spy_unlink)
+    with staged_output(dest, last=("a.json",), owns=("a.json", "plot.png", "optional.png")) as stage:
+        for rel in ("a.json", "plot.png"):
+            (stage / rel).write_text("new")
+        assert (dest / "optional.png").read_text() == "previous"   # nothing removed before the end
+    # the earlier run's optional plot is gone before the new a.json says the set is complete;
+    # a file the set does not own stays
+    assert events == [("moved", "plot.png"), ("removed", "optional.png"), ("moved", "a.json")]
+    assert sorted(p.name for p in dest.iterdir()) == ["a.json", "keep.txt", "plot.png"]
+    assert (dest / "keep.txt").read_text() == "previous"
+
+
+def test_a_failed_block_removes_no_owned_file(tmp_path):
+    dest = tmp_path / "out"
+    dest.mkdir()
+    (dest / "optional.png").write_text("previous")
+    with pytest.raises(RuntimeError):
+        with staged_output(dest, owns=("optional.png",)) as stage:
+            (stage / "a.json").write_text("new")
+            raise RuntimeError("a run failed")
+    assert [p.name for p in dest.iterdir()] == ["optional.png"]
 
 
 @pytest.mark.parametrize("in_the_way", ["dir-at-file", "file-at-dir"])

@@ -673,21 +673,22 @@ def _raise(status, tab, adaptive, t_ok, t_bad, var, state_names, h, rtol, atol, 
             # the derivative of the given initial state is already non-finite: not a step issue
             msg += "This happens at the initial state, so no step size can help: "
         elif adaptive:
-            msg += (f"Try a tighter tolerance (rtol={rtol:g} -> {rtol / 100:g}) or a smaller "
-                    f"hmax, and ")
+            msg += (f"Try a tighter tolerance (rtol={rtol:g} -> {rtol / 100:g}; `--rtol` on the "
+                    f"command line) or a smaller hmax (Python only), and ")
         else:
-            msg += (f"Try a smaller step (dt={h:g} s -> dt={h / 4:g} s) or the adaptive "
-                    f"method='dopri5', and ")
+            msg += (f"Try a smaller step (dt={h:g} s -> dt={h / 4:g} s; `--dt` on the command "
+                    f"line) or the adaptive method='dopri5' (`--method dopri5`), and ")
         msg += "check p, x0 and the drive for NaN/inf or unphysical values."
     elif status == H_UNDERFLOW:
         msg = (f"step size underflow (h = {h:.3g} s) at t = {t_ok:.9g} s with rtol={rtol:g}, "
                f"atol={atol:g}: the solution is (nearly) singular or discontinuous there. Try a "
-               f"looser atol, check the parameters (contact stiffness, impact clamp), or use a "
-               f"fixed-step method='heun'/'rk4' with small dt to see what happens.")
+               f"looser atol (`--atol`), check the parameters (contact stiffness, impact clamp), or "
+               f"use a fixed-step method='heun'/'rk4' with small dt (`--method heun --dt ...`) to "
+               f"see what happens.")
     else:
         msg = (f"max_steps={max_steps} exhausted at t = {t_ok:.9g} s ({n_acc} accepted, {n_rej} "
-               f"rejected, last h = {h:.3g} s). Try a larger max_steps or a looser rtol; if h "
-               f"is tiny the problem may be stiff.")
+               f"rejected, last h = {h:.3g} s). Try a larger max_steps (Python only) or a looser "
+               f"rtol (`--rtol`); if h is tiny the problem may be stiff.")
     raise SimulationError(f"Simulation failed ({name}): " + msg, t=t_bad if var >= 0 else t_ok,
                           variable=what, trajectory=traj)
 

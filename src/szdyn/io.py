@@ -64,14 +64,16 @@ def write_csv(path, columns: Mapping[str, np.ndarray]) -> Path:
 
 
 @contextmanager
-def staged_output(dest, last: Sequence[str] = ()) -> Iterator[Path]:
+def staged_output(dest, last: Sequence[str] = (), owns: Sequence[str] = ()) -> Iterator[Path]:
     """Write a set of files into a staging directory inside ``dest``; move them in at the end.
 
     A run that fails or is interrupted part-way leaves ``dest`` as it was (the earlier results
     are neither lost nor mixed with new ones); only when the ``with`` block ends normally are
     the staged files moved into ``dest`` one by one (``os.replace``, subdirectories merged),
     the names in ``last`` last and in that order (a reader that checks for the last file sees a
-    complete set). Files of ``dest`` that the new set does not replace are kept.
+    complete set). Files of ``dest`` that the new set does not replace are kept, except those
+    named in ``owns``: they belong to such a set, so one the new set lacks is an earlier run's
+    (a plot the new run had no data for) and is removed, before the ``last`` names move in.
 
     Parameters
     ----------
@@ -79,6 +81,9 @@ def staged_output(dest, last: Sequence[str] = ()) -> Iterator[Path]:
         Output directory; created if missing.
     last : sequence of str
         Relative paths (in the staged set) to move after all others.
+    owns : sequence of str
+        Relative paths that only this kind of set writes into ``dest``: removed where the new
+        set does not have them.
 
     Yields
     ------
@@ -116,10 +121,17 @@ def staged_output(dest, last: Sequence[str] = ()) -> Iterator[Path]:
                 if (dest / parent).exists() and not (dest / parent).is_dir():
                     raise UserInputError(f"{dest / parent} is a file where the new directory of {rel} goes; "
                                          "move it away (the new results were not written)")
+        stale = [dest / rel for rel in owns if rel not in files and (dest / rel).is_file()]
         for rel in files:
+            if rel in order and stale:
+                for p in stale:   # before the first of `last`: its reader sees no earlier run's file
+                    p.unlink()
+                stale = []
             target = dest / rel
             target.parent.mkdir(parents=True, exist_ok=True)
             os.replace(stage / rel, target)
+        for p in stale:
+            p.unlink()
         done = True
     finally:
         shutil.rmtree(stage, ignore_errors=True)

@@ -27,7 +27,11 @@ from .diagnosis import AMPLITUDE_PROBES
 from .locate import feature_table
 from .phase import IDENTIFIED_SHARE, PHASE_UNCERTAINTY
 
-__all__ = ["write_report", "to_json", "updated_parameters"]
+__all__ = ["OUTPUT_FILES", "write_report", "to_json", "updated_parameters"]
+
+#: Every file :func:`write_report` may write; one a run does not write is removed from ``out``.
+OUTPUT_FILES = ("params.json", "report.md", "diagnosis.json", "residual_time.png", "residual_features.png",
+                "candidates.png", "heldout_fit.png", "torque_fit.png")
 
 COMPARED = (f"smoothed band speed omega_b (Savitzky-Golay derivative of theta_b, degree 2, window "
             f"{WINDOW_S:g} s) every {FEATURE_DT:g} s, measured minus model, with the model driven by "
@@ -171,7 +175,11 @@ def _probing_md(d) -> str:
             + "): best " + ", ".join(f"`{q['id']}`{' (own probes)' if q.get('own_probes') else ''} "
                                      f"{_f(q['rmse_probe'])}" for q in d.probing_[:3])
             + f" rad/s against the calibrated base's {_f(top['rmse_base'])}"
-            + (f"; refitted for it: {', '.join(f'`{k}`' for k in added)}." if added else ".") + spared)
+            + (f"; refitted for it: {', '.join(f'`{k}`' for k in added)}." if added else ".") + spared
+            + "".join(f" `{k}` was refitted with all its starts although `{v}` already fitted within "
+                      f"{d.rule.rival_floor:g} noise floors: a sensor term does not settle a physical effect "
+                      "that the calibration absorbed (it can imitate one)."
+                      for k, v in d.sensor_not_settling_.items()))
 
 
 def _detectable_md(d, js) -> list:
@@ -291,6 +299,7 @@ def _to_json(d) -> dict:
         "rivals": list(d.rivals_),
         "probing": d.probing_,
         "not_refitted": d.not_refitted_,
+        "sensor_not_settling": d.sensor_not_settling_,
         "recordings": [{"name": r.name, "role": r.role, "load_kg": r.load_kg,
                         "t0": r.t0, "t1": r.t1, "samples": len(r.rec)} for r in d.recordings_],
         "compared": COMPARED,
@@ -793,7 +802,8 @@ def write_report(d, out) -> dict:
     js = _to_json(d)
     # staged, then moved in together: an interruption part-way leaves the previous run's set
     # whole (a new params.json beside an old report would be taken for this run's answer)
-    with staged_output(out, last=("diagnosis.json",)) as stage:
+    # torque_fit.png is written only with a measured current: an earlier run's must not stay
+    with staged_output(out, last=("diagnosis.json",), owns=OUTPUT_FILES) as stage:
         updated_parameters(d).to_json(stage / "params.json")
         _plots(d, stage)
         atomic_write_text(stage / "report.md", _report_md(d, js))
