@@ -3,12 +3,20 @@
 Usage::
 
     python bench/diagnosis_cost.py --work DIR [--effect load_lift] [--seed 31] [--diagnose-args "--phase-steps 2"]
+    python bench/diagnosis_cost.py --work DIR --effect all --seed 39   # every effect and none
 
 Writes three 10 s recordings at one load (1 kg; ramps to +pi, +2 pi and -pi rad/s, each held to
 10 s) with one concealed effect, runs ``python -m szdyn.run diagnose`` on them as a user would
 (CLI defaults, no ``[split]``: one recording is held out) and prints the wall time, the verdict,
 the effect parameter against the truth and the held-out RMSE before and after, also written to
 ``DIR/cost.json``. Run it on an otherwise idle machine: the time is the measurement.
+
+With several effects (``--effect a,b`` or ``all``: ``none`` and every effect of
+``szdyn.synth.EFFECTS``) each runs in ``DIR/EFFECT`` in turn, one already finished (its
+``cost.json``) is kept, and ``DIR/cost-summary.md`` with a JSON twin scores them: the answer
+against the concealed effect, the parameter error (``diagnosis_grid.param_error``), the held-out
+gain and the held-out error before in noise floors, model runs and seconds. This is the issue's
+configuration, on one load; the grids (``diagnosis_grid.py``) have two.
 """
 from __future__ import annotations
 
@@ -23,9 +31,12 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "src"))
 
-from szdyn.io import write_json  # noqa: E402
-from szdyn.synth import RampSpec, synthesize  # noqa: E402
+sys.path.insert(0, str(ROOT / "bench"))
+
+from szdyn.io import atomic_write_text, write_json  # noqa: E402
+from szdyn.synth import EFFECTS, RampSpec, synthesize  # noqa: E402
 from szdyn.diagnose.candidates import CANDIDATES  # noqa: E402
+from diagnosis_grid import param_error  # noqa: E402
 
 #: Three 10 s recordings: the grid's ramps (``szdyn.synth.DEFAULT_RAMPS``), each held longer.
 RAMPS = (RampSpec("up_pi", 0.5 * math.pi, 2.0, 8.0),
@@ -33,16 +44,11 @@ RAMPS = (RampSpec("up_pi", 0.5 * math.pi, 2.0, 8.0),
          RampSpec("down_pi", -0.4 * math.pi, 2.5, 7.5))
 
 
-def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--work", type=Path, required=True)
-    ap.add_argument("--effect", default="load_lift")
-    ap.add_argument("--seed", type=int, default=31)
-    ap.add_argument("--diagnose-args", default="", help="extra diagnose options (default: none, the CLI defaults)")
-    args = ap.parse_args(argv)
-    data, out = args.work / "data", args.work / "diagnosis"
+def run_case(work: Path, effect: str, seed: int, diagnose_args: str) -> dict:
+    """Generate (once) and diagnose one case in ``work``; its result, also in ``work/cost.json``."""
+    data, out = work / "data", work / "diagnosis"
     if not (data / "truth.json").is_file():
-        synthesize(data, args.effect, seed=args.seed, loads_kg=(1.0,), ramps=RAMPS, dt=5e-5, verbose=False)
+        synthesize(data, effect, seed=seed, loads_kg=(1.0,), ramps=RAMPS, dt=5e-5, verbose=False)
     # the split is the diagnosis's own choice (no [split] in the manifest): drop the generator's
     man = data / "manifest.toml"
     text = man.read_text()
@@ -52,21 +58,94 @@ def main(argv=None) -> int:
         man.write_text("\n".join(lines[:k] + lines[k + 2:]) + "\n")
     t = time.perf_counter()
     subprocess.run([sys.executable, "-m", "szdyn.run", "diagnose", str(man), "--out", str(out),
-                    *args.diagnose_args.split()], check=True)
+                    *diagnose_args.split()], check=True)
     seconds = time.perf_counter() - t
     truth = json.loads((data / "truth.json").read_text())
     d = json.loads((out / "diagnosis.json").read_text())
-    res = {"effect": args.effect, "seed": args.seed, "seconds": round(seconds, 1), "selected": d["selected"],
+    res = {"effect": effect, "seed": seed, "seconds": round(seconds, 1), "selected": d["selected"],
            "verdict": d["verdict"], "heldout_before": d["fit"]["before"]["heldout_rmse"],
            "heldout_after": d["fit"]["after"]["heldout_rmse"], "model_runs": d["cost"]["model_runs"],
-           "diagnose_args": args.diagnose_args}
-    if args.effect != "none":
-        prim = CANDIDATES[args.effect].primary
+           "noise_floor": d["noise_floor"], "diagnose_args": diagnose_args}
+    if effect != "none":
+        prim = CANDIDATES[effect].primary
         tv = {**truth["effect_parameters"], **truth["effect_sensor"]}.get(prim)
-        e = next((x for x in d["effects"] if x["id"] == args.effect and x.get("primary")), None)
+        e = next((x for x in d["effects"] if x["id"] == effect and x.get("primary")), None)
         res.update({"truth_param": tv, "fitted_param": e["primary"]["value"] if e else None})
-    write_json(args.work / "cost.json", res)
-    print(json.dumps(res, indent=1))
+    write_json(work / "cost.json", res)
+    return res
+
+
+def score(res: dict, noise_floor: float | None = None) -> dict:
+    """One case's result with ``correct``, ``param_error`` (named cases), ``heldout_ratio`` and
+    ``heldout_over_floor`` added; ``noise_floor`` (rad/s) where the result lacks it (a
+    ``cost.json`` written before it was recorded)."""
+    eff = res["effect"]
+    floor = res.get("noise_floor", noise_floor)
+    out = dict(res, noise_floor=floor,
+               correct=(res["selected"] == [] if eff == "none" else res["selected"] == [eff]))
+    if out["correct"] and eff != "none" and res.get("truth_param") is not None \
+            and res.get("fitted_param") is not None:
+        out["param_error"] = param_error(eff, res["truth_param"], res["fitted_param"])
+    if res["heldout_before"] and res["heldout_after"]:
+        out["heldout_ratio"] = res["heldout_before"] / res["heldout_after"]
+    if res["heldout_before"] and floor:
+        out["heldout_over_floor"] = res["heldout_before"] / floor
+    return out
+
+
+def summary_md(rows: list, seed: int) -> str:
+    """The cases of one seed as a markdown table (``rows``: :func:`score`'s)."""
+    def f(x, fmt):
+        return "-" if x is None else format(x, fmt)
+
+    eff = [r for r in rows if r["effect"] != "none"]
+    nulls = [r for r in rows if r["effect"] == "none"]
+    L = [f"# The issue's cost configuration, every effect (seed {seed})", "",
+         "Generated by `python bench/diagnosis_cost.py --effect ...`: three 10 s recordings at one "
+         "load (1 kg; ramps to +pi, +2 pi and -pi rad/s), one held out by the diagnosis's own "
+         "split, the CLI defaults. Seconds are wall time on 2 cores (comparable only on an idle "
+         "machine).", "",
+         f"Named: {sum(r['correct'] for r in eff)}/{len(eff)}; null cases with no effect named: "
+         f"{sum(r['correct'] for r in nulls)}/{len(nulls)}.", "",
+         "| concealed | answer | parameter error | held-out before -> after (rad/s) | gain "
+         "| before, noise floors | model runs | seconds |", "|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        ans = ", ".join(f"`{k}`" for k in r["selected"]) or r["verdict"]
+        if not r["correct"]:
+            ans = f"**{ans}**"
+        L.append(f"| {r['effect']} | {ans} | {f(r.get('param_error'), '.1%').replace('%', ' %')} "
+                 f"| {r['heldout_before']:.4g} -> {r['heldout_after']:.4g} | {f(r.get('heldout_ratio'), '.1f')}x "
+                 f"| {f(r.get('heldout_over_floor'), '.1f')} | {r['model_runs']} | {r['seconds']:.0f} |")
+    return "\n".join(L) + "\n"
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--work", type=Path, required=True)
+    ap.add_argument("--effect", default="load_lift",
+                    help="an effect id or none, several comma-separated, or all (none and every effect)")
+    ap.add_argument("--seed", type=int, default=31)
+    ap.add_argument("--diagnose-args", default="", help="extra diagnose options (default: none, the CLI defaults)")
+    args = ap.parse_args(argv)
+    effects = ["none", *EFFECTS] if args.effect == "all" else [e.strip() for e in args.effect.split(",")]
+    bad = [e for e in effects if e != "none" and e not in EFFECTS]
+    if bad:
+        ap.error(f"unknown effect(s) {', '.join(bad)}; known: none, {', '.join(EFFECTS)}, all")
+    if len(effects) == 1:
+        print(json.dumps(run_case(args.work, effects[0], args.seed, args.diagnose_args), indent=1))
+        return 0
+    rows = []
+    for eff in effects:
+        work = args.work / eff
+        done = work / "cost.json"
+        res = json.loads(done.read_text()) if done.is_file() else run_case(work, eff, args.seed, args.diagnose_args)
+        diag = work / "diagnosis" / "diagnosis.json"
+        floor = json.loads(diag.read_text())["noise_floor"] if diag.is_file() else None
+        rows.append(score(res, floor))
+        print(f"{eff}: {', '.join(res['selected']) or res['verdict']} ({res['seconds']:.0f} s)", flush=True)
+    write_json(args.work / "cost-summary.json", {"seed": args.seed, "cases": rows})
+    atomic_write_text(args.work / "cost-summary.md", summary_md(rows, args.seed))
+    print(summary_md(rows, args.seed))
     return 0
 
 

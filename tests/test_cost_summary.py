@@ -1,0 +1,56 @@
+"""bench/diagnosis_cost.py's scoring of the one-load cost configuration (no diagnosis is run)."""
+import importlib.util
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _bench():
+    path = ROOT / "bench" / "diagnosis_cost.py"
+    spec = importlib.util.spec_from_file_location("diagnosis_cost", path)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def _case(effect, selected, **kw):
+    return {"effect": effect, "seed": 39, "seconds": 500.0, "selected": selected,
+            "verdict": "selected" if selected else "none", "heldout_before": 0.08,
+            "heldout_after": 0.008, "model_runs": 700, **kw}
+
+
+def test_score_names_errors_and_gains():
+    mod = _bench()
+    r = mod.score(_case("slider_viscous", ["slider_viscous"], truth_param=0.004, fitted_param=0.0042,
+                        noise_floor=0.004))
+    assert r["correct"] and r["param_error"] == pytest.approx(0.05)
+    assert r["heldout_ratio"] == pytest.approx(10.0) and r["heldout_over_floor"] == pytest.approx(20.0)
+    # a wrong name: no parameter error; the floor taken from the diagnosis when the result lacks it
+    r = mod.score(_case("slider_viscous", ["encoder_scale"], truth_param=0.004, fitted_param=None), 0.008)
+    assert not r["correct"] and "param_error" not in r and r["heldout_over_floor"] == pytest.approx(10.0)
+    # encoder_scale: the error of the scale error, not of the gain
+    r = mod.score(_case("encoder_scale", ["encoder_scale"], truth_param=1.02, fitted_param=1.021))
+    assert r["param_error"] == pytest.approx(0.05)
+    assert "heldout_over_floor" not in r
+    # a null case is right when nothing is named, whatever the verdict
+    assert mod.score(_case("none", [], verdict="unexplained"))["correct"]
+    assert not mod.score(_case("none", ["load_lift"]))["correct"]
+
+
+def test_summary_counts_and_marks_wrong_answers():
+    mod = _bench()
+    rows = [mod.score(_case("none", [])),
+            mod.score(_case("slider_viscous", ["encoder_scale"])),
+            mod.score(_case("load_lift", ["load_lift"], truth_param=0.04, fitted_param=0.038))]
+    md = mod.summary_md(rows, 39)
+    assert "Named: 1/2; null cases with no effect named: 1/1." in md
+    assert "| slider_viscous | **`encoder_scale`** |" in md and "| load_lift | `load_lift` | 5.0 % |" in md
+
+
+def test_unknown_effect_is_refused(capsys):
+    mod = _bench()
+    with pytest.raises(SystemExit):
+        mod.main(["--work", "x", "--effect", "slider_viscus,none"])
+    assert "unknown effect(s) slider_viscus" in capsys.readouterr().err
