@@ -1,7 +1,9 @@
 """Shared test inputs: random parameter vectors and states built by parameter *name*."""
 from __future__ import annotations
 
+import importlib.util
 import math
+from pathlib import Path
 
 import numpy as np
 
@@ -64,3 +66,12 @@ def random_state(rng: np.random.Generator, n_circles: int, gamma: float) -> np.n
 def constant_drive(value: float) -> np.ndarray:
     """Drive array with one knot: constant speed (prescribed) or constant torque."""
     return np.array([1.0, 0.0, value, 0.0])
+
+
+def load_bench(name: str):
+    """The module ``bench/NAME.py`` (the benchmarks are scripts, not a package), loaded by path."""
+    path = Path(__file__).resolve().parents[1] / "bench" / f"{name}.py"
+    spec = importlib.util.spec_from_file_location(name, path)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod

@@ -5,8 +5,6 @@ while some candidates are fitted in other coordinates (a compliance, a sine and 
 scale offset). Round trip: the synthesised effect, mapped to the candidate's coordinates and
 back through the candidate's own model changes, is the effect synth put into the truth.
 """
-import importlib.util
-from pathlib import Path
 
 import pytest
 
@@ -14,15 +12,13 @@ from szdyn.diagnose.candidates import CANDIDATES
 from szdyn.diagnose.fit import Hypothesis
 from szdyn.synth import EFFECTS, effect_changes
 
+from cases import load_bench
+
 START = {"k_c": 0.05, "b_c": 0.0075, "k_imp": 4e12, "mu_s": 0.3, "mu_k": 0.25}
 
 
 def _bench():
-    path = Path(__file__).resolve().parents[1] / "bench" / "optimum_vs_truth.py"
-    spec = importlib.util.spec_from_file_location("optimum_vs_truth", path)
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
+    return load_bench("optimum_vs_truth")
 
 
 @pytest.mark.parametrize("effect", sorted(EFFECTS))

@@ -1,18 +1,11 @@
 """bench/diagnosis_cost.py's scoring of the one-load cost configuration (no diagnosis is run)."""
-import importlib.util
-from pathlib import Path
-
 import pytest
 
-ROOT = Path(__file__).resolve().parents[1]
+from cases import load_bench
 
 
 def _bench():
-    path = ROOT / "bench" / "diagnosis_cost.py"
-    spec = importlib.util.spec_from_file_location("diagnosis_cost", path)
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
+    return load_bench("diagnosis_cost")
 
 
 def _case(effect, selected, **kw):

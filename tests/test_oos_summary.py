@@ -1,21 +1,18 @@
 """bench/oos_summary.py: the per-effect out-of-sample standing is counted from the seeds' scored
 results, and the committed twin (docs/diagnosis-oos-summary.json) is the count of the committed
 results (a seed re-scored without regenerating the summary fails here)."""
-import importlib.util
 import json
 from pathlib import Path
 
 import pytest
 
+from cases import load_bench
+
 ROOT = Path(__file__).resolve().parents[1]
 
 
 def _bench():
-    path = ROOT / "bench" / "oos_summary.py"
-    spec = importlib.util.spec_from_file_location("oos_summary", path)
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
+    return load_bench("oos_summary")
 
 
 def test_committed_summary_is_the_count_of_the_committed_results():
