@@ -139,13 +139,16 @@ def main(argv=None) -> int:
         work = args.work / eff
         done = work / "cost.json"
         res = json.loads(done.read_text()) if done.is_file() else run_case(work, eff, args.seed, args.diagnose_args)
+        floor = None
         diag = work / "diagnosis" / "diagnosis.json"
-        floor = json.loads(diag.read_text())["noise_floor"] if diag.is_file() else None
+        if "noise_floor" not in res and diag.is_file():   # a cost.json from before it was recorded
+            floor = json.loads(diag.read_text())["noise_floor"]
         rows.append(score(res, floor))
         print(f"{eff}: {', '.join(res['selected']) or res['verdict']} ({res['seconds']:.0f} s)", flush=True)
+    md = summary_md(rows, args.seed)
     write_json(args.work / "cost-summary.json", {"seed": args.seed, "cases": rows})
-    atomic_write_text(args.work / "cost-summary.md", summary_md(rows, args.seed))
-    print(summary_md(rows, args.seed))
+    atomic_write_text(args.work / "cost-summary.md", md)
+    print(md)
     return 0
 
 
