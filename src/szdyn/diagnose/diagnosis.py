@@ -536,16 +536,6 @@ class Diagnosis:
         sensor candidate may settle (:data:`SENSOR_SETTLES_RESCUES`)."""
         return not SENSOR_SETTLES_RESCUES and cid in probed and library[cid].kind == "model"
 
-    def _sensor_settler(self, cid, probed, library, fits) -> str | None:
-        """The sensor candidate that would have settled the probe addition ``cid`` had
-        :data:`SENSOR_SETTLES_RESCUES` allowed it (eligible, within ``rule.rival_floor`` noise
-        floors, explaining :data:`SETTLED_SKIPS_PROBED`), where no model-side one does; else None.
-        ``fits``: per refitted candidate, ``eligible`` and ``rmse_fit``."""
-        if not self._kept_from_sensors(cid, probed, library):
-            return None
-        strong = {k: v for k, v in fits.items() if self.refits_[k]["explained"] >= SETTLED_SKIPS_PROBED}
-        return settled(self.rule, strong, self.floor_, exclude=cid)
-
     def _screen(self, model, start: dict, xb, fit_idx, floor: float) -> list:
         """Linear screening of every candidate at the base point ``xb`` (base fit coordinates).
 
@@ -1573,19 +1563,29 @@ class Diagnosis:
             def spare(cid, settler):
                 not_refitted[cid] = {"by": settler, "explained": self.refits_[settler]["explained"]}
 
-            def spared_by(cid):
-                """The settler, among the candidates explaining SETTLED_SKIPS_PROBED of the
-                mismatch or more, that spares the probe addition ``cid`` its refit (else None)."""
-                if cid not in probed:
-                    return None
+            def strong_settler(cid, admit):
+                """The settler of ``cid`` (:func:`~.selection.settled`) among the candidates
+                ``admit`` lets settle it that explain SETTLED_SKIPS_PROBED of the mismatch or more;
+                None when there is none."""
                 strong = {k: v for k, v in fit_summary().items()
-                          if self.refits_[k]["explained"] >= SETTLED_SKIPS_PROBED and may_settle(k, cid)}
+                          if self.refits_[k]["explained"] >= SETTLED_SKIPS_PROBED and admit(k)}
                 return settled(self.rule, strong, self.floor_, exclude=cid) if strong else None
+
+            def spared_by(cid):
+                """The settler that spares the probe addition ``cid`` its refit (else None)."""
+                return strong_settler(cid, lambda k: may_settle(k, cid)) if cid in probed else None
+
+            def sensor_settler(cid):
+                """The sensor candidate that would have spared ``cid`` had
+                :data:`SENSOR_SETTLES_RESCUES` allowed it, where no model-side one does (called
+                after :func:`spared_by` found none); else None."""
+                kept = self._kept_from_sensors(cid, probed, library)
+                return strong_settler(cid, lambda k: True) if kept else None
 
             for cid in short:
                 settler = spared_by(cid)
                 if settler is None:
-                    sensor = self._sensor_settler(cid, probed, library, fit_summary())
+                    sensor = sensor_settler(cid)
                     if sensor is not None:
                         self.sensor_not_settling_[cid] = sensor
                         self.log(f"refitting {cid} (added by the probe screening) with all its starts although "
