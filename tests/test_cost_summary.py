@@ -47,3 +47,39 @@ def test_unknown_effect_is_refused(capsys):
     with pytest.raises(SystemExit):
         mod.main(["--work", "x", "--effect", "slider_viscus,none"])
     assert "unknown effect(s) slider_viscus" in capsys.readouterr().err
+
+
+def test_summary_header_names_the_effects_run_and_the_options():
+    """The header says which effects ran (in their order) and with which diagnose options;
+    "every effect" only when none and all of them ran."""
+    mod = _bench()
+    two = [mod.score(_case("slider_viscous", ["slider_viscous"])), mod.score(_case("none", []))]
+    md = mod.summary_md(two, 41)
+    assert md.startswith("# The issue's cost configuration, slider_viscous, none (seed 41)\n")
+    assert "`python bench/diagnosis_cost.py --work DIR --seed 41 --effect slider_viscous,none`" in md
+    assert "the CLI defaults" in md
+    steps = [mod.score(_case("load_lift", ["load_lift"], diagnose_args="--phase-steps 2"))]
+    md = mod.summary_md(steps, 31)
+    assert "--effect load_lift --diagnose-args '--phase-steps 2'`" in md and "the CLI defaults" not in md
+    every = [mod.score(_case(e, [e] if e != "none" else [])) for e in ["none", *mod.EFFECTS]]
+    assert mod.summary_md(every, 40).startswith("# The issue's cost configuration, every effect (seed 40)")
+
+
+def test_a_finished_case_run_with_other_options_is_refused(tmp_path, capsys):
+    """Resuming with other --diagnose-args would mix two settings in one summary: refused, naming
+    the case's file and both option strings; nothing is run and nothing is overwritten."""
+    import json
+
+    mod = _bench()
+    for eff in ("none", "load_lift"):
+        (tmp_path / eff).mkdir()
+        (tmp_path / eff / "cost.json").write_text(json.dumps(
+            _case(eff, [], noise_floor=0.005, diagnose_args="--phase-steps 2")))
+    with pytest.raises(SystemExit) as exc:
+        mod.main(["--work", str(tmp_path), "--effect", "none,load_lift"])
+    msg = str(exc.value)
+    assert str(tmp_path / "none" / "cost.json") in msg and "'--phase-steps 2'" in msg and "not ''" in msg
+    assert not (tmp_path / "cost-summary.md").exists()
+    assert mod.main(["--work", str(tmp_path), "--effect", "none,load_lift",
+                     "--diagnose-args", "--phase-steps 2"]) == 0
+    assert "--diagnose-args '--phase-steps 2'" in (tmp_path / "cost-summary.md").read_text()
