@@ -54,7 +54,9 @@ def test_encoder_scale_error_is_that_of_the_scale_error():
 def test_every_scored_seed_file_is_counted_or_excluded_by_name():
     mod = _bench()
     files = mod.record()
-    assert sorted(files) == list(range(13, max(files) + 1))     # no seed skipped
+    # no seed skipped but those skipped on purpose, with their reason
+    assert sorted([*files, *mod.NO_GRID_RUN]) == list(range(13, max(files) + 1))
+    assert not set(files) & set(mod.NO_GRID_RUN)
     on_disk = {p.name for p in (ROOT / "docs").glob("diagnosis-oos-seed*.json")}
     assert on_disk == set(files.values()) | set(mod.NOT_OF_RECORD)
     assert files[22] == "diagnosis-oos-seed22-default.json"
@@ -82,3 +84,10 @@ def test_row_counts_named_cases_only_and_its_thresholds():
     assert r["param_error_median"] == 0.15 and r["gain_median"] == 3.0
     # the error in the reported std: over named cases where it is stored, 2 std counted as covered
     assert (r["z_within_2"], r["z_known"], r["z_median"]) == (1, 2, 4.5)
+
+
+def test_seed_ranges_show_gaps():
+    """The title names the seeds as runs, so seeds missing between the first and the last show."""
+    mod = _bench()
+    assert mod.seed_ranges({"files": {"13": "a", "14": "b", "15": "c", "44": "d"}}) == "13-15, 44"
+    assert mod.seed_ranges({"files": {"7": "a"}}) == "7"
