@@ -65,7 +65,7 @@ def test_summary_header_names_the_effects_run_and_the_options():
     assert mod.summary_md(every, 40).startswith("# The issue's cost configuration, every effect (seed 40)")
 
 
-def test_a_finished_case_run_with_other_options_is_refused(tmp_path, capsys):
+def test_a_finished_case_run_with_other_options_is_refused(tmp_path):
     """Resuming with other --diagnose-args would mix two settings in one summary: refused, naming
     the case's file and both option strings; nothing is run and nothing is overwritten."""
     import json
