@@ -89,5 +89,5 @@ def test_row_counts_named_cases_only_and_its_thresholds():
 def test_seed_ranges_show_gaps():
     """The title names the seeds as runs, so seeds missing between the first and the last show."""
     mod = _bench()
-    assert mod.seed_ranges({"files": {"13": "a", "14": "b", "15": "c", "44": "d"}}) == "13-15, 44"
-    assert mod.seed_ranges({"files": {"7": "a"}}) == "7"
+    assert mod.seed_ranges({"13": "a", "14": "b", "15": "c", "44": "d"}) == "13-15, 44"
+    assert mod.seed_ranges([7]) == "7"
