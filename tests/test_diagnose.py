@@ -950,6 +950,33 @@ def test_report_says_which_pass_of_an_exchanged_split_is_the_answer():
     assert _split_md(Namespace(first_split_=None, unused_split_=None, hidden_conditions_=[])) == []
 
 
+def test_a_missed_heldout_recording_along_the_force_scale_is_recorded_and_reported():
+    from szdyn.diagnose.diagnosis import Diagnosis
+    from szdyn.diagnose.report import _heldout_scale_md
+
+    recs = [Namespace(name="a_up"), Namespace(name="b_fast"), Namespace(name="c_down")]
+    d = Namespace(floor_=0.01, rule=SelectionRule(), heldout_beyond_floor_={"b_fast": 7.9, "c_down": 4.0},
+                  selected_=["encoder_scale"])
+    scan = {"sigma": 0.049, "points": [-1.0, -0.5, 0.5, 1.0], "factors": [0.952, 0.976, 1.025, 1.050],
+            "rmse": {1: [0.0795, 0.0073, 0.076, 0.144], 2: [0.041, None, 0.039, 0.042]}}
+    rec = Diagnosis._scale_record(d, scan, recs)
+    b, c = rec["recordings"]["b_fast"], rec["recordings"]["c_down"]
+    assert b["over_floor"] == pytest.approx([7.95, 0.73, 7.6, 14.4])
+    assert b["min"] == pytest.approx(0.73) and b["at_factor"] == 0.976 and b["max"] == pytest.approx(14.4)
+    assert b["reproduced"]                        # 0.73 floors is within the rule's 1.3
+    # a failed step is None and left out; the final model itself (x1, 4.0 floors) counts
+    assert c["over_floor"][1] is None and c["min"] == pytest.approx(3.9) and c["at_factor"] == 1.025
+    assert c["max"] == pytest.approx(4.2) and not c["reproduced"]
+    d.heldout_scale_ = rec
+    text = "\n".join(_heldout_scale_md(d))
+    assert "x0.952 to x1.050 (+-1 reported std of mu_k, 4.9%, in 4 steps" in text
+    assert "`b_fast`: reproduced at x0.976 (0.73x the floor)" in text and "14.4x at worst" in text
+    assert "`c_down`: nowhere within 1.3x the floor (best 3.9x, at x1.025)" in text
+    assert "8.0, 0.7, 7.6, 14.4" in text and "4.1, failed, 3.9, 4.2" in text
+    d.heldout_scale_ = None
+    assert _heldout_scale_md(d) == []
+
+
 def test_split_that_holds_out_the_only_run_of_a_condition_is_reported():
     from szdyn.diagnose.report import _split_md
     from szdyn.diagnose.split import hidden_conditions
@@ -1152,6 +1179,13 @@ def test_diagnosis_json_schema(viscous):
         ratio = rmse / d["noise_floor"]
         assert (name in beyond) == (ratio > d["rule"]["min_excess"]), name
         assert beyond.get(name, ratio) == pytest.approx(ratio)
+    # and run again along the force scale, within the reported std of mu_k
+    hs = d["heldout_force_scale"]
+    assert (hs is None) == (not beyond)
+    if hs is not None:
+        assert set(hs["recordings"]) == set(beyond) and len(hs["factors"]) == len(hs["points"])
+        for name, e in hs["recordings"].items():
+            assert e["min"] <= beyond[name] <= e["max"] and len(e["over_floor"]) == len(hs["points"])
 
 
 def test_null_recordings_give_none(null):

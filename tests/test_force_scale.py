@@ -8,7 +8,8 @@ import pytest
 from szdyn.diagnose.candidates import CANDIDATES, RIGID_COMPLIANCE
 from szdyn.diagnose.engine import FeatureModel
 from szdyn.diagnose.fit import FitResult, Hypothesis, _uncertainty
-from szdyn.diagnose.force_scale import FORCE_SCALE_STEP, force_scale_direction, force_scale_secant
+from szdyn.diagnose.force_scale import (FORCE_SCALE_STEP, HELDOUT_SCALE_POINTS, force_scale_direction,
+                                        force_scale_secant, heldout_along_force_scale)
 
 START = {"k_c": 0.05, "b_c": 0.0075, "k_imp": 4e12, "mu_s": 0.3, "mu_k": 0.25}
 
@@ -147,3 +148,43 @@ def test_a_drive_scaled_past_the_rigid_limit_is_not_corrected():
     x[-1] = 1.2 * RIGID_COMPLIANCE                             # +-5 % stays compliant
     res = _fit_result(h, x, J, np.zeros(10), np.zeros((10, 6)))
     assert force_scale_secant(Flat(), h, res, [0]).extra["force_scale"]["corrected"]
+
+
+def test_a_missed_recording_is_run_along_the_scale_within_the_std_of_mu_k():
+    # the linear model: at every step the residual is y - A (x + a sigma s), its RMS known
+    h, x, s, A, y, rng = _setup()
+    res = _fit_result(h, x, A, y, A)
+    sigma = res.std["mu_k"] / res.values["mu_k"]
+    out = heldout_along_force_scale(LinearModel(h, A, y), h, res, [3])
+    assert out["sigma"] == pytest.approx(sigma) and out["points"] == list(HELDOUT_SCALE_POINTS)
+    assert out["factors"] == pytest.approx([math.exp(a * sigma) for a in HELDOUT_SCALE_POINTS])
+    want = [math.sqrt(np.mean((y - A @ (x + a * sigma * s)) ** 2)) for a in HELDOUT_SCALE_POINTS]
+    assert list(out["rmse"]) == [3] and out["rmse"][3] == pytest.approx(want, rel=1e-9)
+    # the steps move every force by the factor, the torque-like lift with them
+    v0 = h.values(x)
+    v1 = h.values(x + sigma * s)
+    assert v1["mu_k"] / v0["mu_k"] == pytest.approx(out["factors"][-1])
+    assert v1["k_c"] / v0["k_c"] == pytest.approx(out["factors"][-1])
+
+
+def test_a_failed_run_along_the_scale_is_none_and_an_unknown_std_scans_nothing():
+    h, x, s, A, y, rng = _setup()
+    res = _fit_result(h, x, A, y, A)
+    out = heldout_along_force_scale(LinearModel(h, A, y, failed=True), h, res, [0, 1])
+    assert out["rmse"] == {0: [None] * len(HELDOUT_SCALE_POINTS), 1: [None] * len(HELDOUT_SCALE_POINTS)}
+    res.std["mu_k"] = math.nan
+    assert heldout_along_force_scale(LinearModel(h, A, y), h, res, [0]) is None
+
+
+def test_steps_past_the_rigid_drive_are_skipped_along_the_held_out_scan():
+    h = Hypothesis(START, CANDIDATES["drive_compliance"])
+    x = np.r_[np.zeros(5), 1.02 * RIGID_COMPLIANCE]
+    J = np.ones((10, 6))
+    res = _fit_result(h, x, J, np.zeros(10), np.zeros((10, 6)))
+    res.std["mu_k"] = 0.1 * res.values["mu_k"]          # -10 %: 2 % less compliance is rigid
+    out = heldout_along_force_scale(Flat(), h, res, [0])
+    # only the steps that scale the compliance down past the rigid limit are skipped (a linear
+    # coordinate: d c / d log(lam) = -c)
+    a = np.asarray(HELDOUT_SCALE_POINTS)
+    assert [r is None for r in out["rmse"][0]] == list(1.02 * (1.0 - a * 0.1) < 1.0)
+    assert any(r is None for r in out["rmse"][0]) and any(r == 0.0 for r in out["rmse"][0])

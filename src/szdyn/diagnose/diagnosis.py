@@ -58,7 +58,7 @@ from .candidates import CANDIDATES, Candidate
 from .detect import detectable_amplitude
 from .engine import FeatureModel, rms
 from .fit import Hypothesis, fit_hypothesis, gauss_newton_step, jacobian, linear_step
-from .force_scale import force_scale_secant
+from .force_scale import force_scale_secant, heldout_along_force_scale
 from .locate import follows, locate
 from .noise import bump_noise, sensor_noise, torque_bump_noise, torque_sensor_noise
 from .phase import PHASE_GATE, estimate_phases, identified_phases
@@ -424,6 +424,15 @@ class Diagnosis:
         do not (another speed, the full-slip cliff); it never changes a verdict directly, but
         beyond ``rule.max_remaining`` floors after a "none" or a named effect it makes :meth:`fit`
         exchange it.
+    heldout_scale_ : dict or None
+        Each recording of ``heldout_beyond_floor_`` run again with every force of the final
+        model scaled together within +-1 reported std of mu_k
+        (:func:`~.force_scale.heldout_along_force_scale`): ``sigma`` (that std, relative),
+        ``points`` (in ``sigma``), ``factors`` (every force's factor at each), and per recording
+        ``over_floor`` (RMSE / noise floor per step; None where a run failed), ``min`` (over the
+        steps and the final model itself) with its ``at_factor``, ``max``, and ``reproduced``
+        (``min`` within ``rule.min_excess``). None when no held-out recording was missed or the
+        std is unknown.
     first_split_ : dict or None
         When the split was exchanged and the second pass is the answer: the first pass's
         ``heldout`` names, ``weighted``, ``verdict``, ``selected``, ``calibrated_fit_over_floor``,
@@ -1088,6 +1097,24 @@ class Diagnosis:
         self.timings_ = {key: other["seconds"], **self.timings_}
         self.n_runs_ += other["model_runs"]
         self.n_failed_ += other["failed_runs"]
+
+    def _scale_record(self, scan: dict, recs) -> dict:
+        """``heldout_scale_`` from :func:`~.force_scale.heldout_along_force_scale`'s ``scan``:
+        RMSEs over the floor, keyed by recording name, each with its best step."""
+        out = {"sigma": scan["sigma"], "points": scan["points"], "factors": scan["factors"],
+               "recordings": {}}
+        for i, per in scan["rmse"].items():
+            ratios = [None if v is None else v / self.floor_ for v in per]
+            known = [(r, f) for r, f in zip(ratios, scan["factors"]) if r is not None]
+            name = recs[i].name
+            # the updated model itself (factor 1) is among what was tried
+            known.append((self.heldout_beyond_floor_[name], 1.0))
+            best = min(known)
+            out["recordings"][name] = {
+                "over_floor": ratios, "min": best[0], "at_factor": best[1],
+                "max": max(r for r, _ in known),
+                "reproduced": not self.rule.mismatch(best[0] * self.floor_, self.floor_)}
+        return out
 
     def _summary(self) -> dict:
         """What the pass just run said, for the record of a pass that is not the answer."""
@@ -1830,6 +1857,7 @@ class Diagnosis:
             # fit recordings are reproduced is reported, not acted on (the verdict stands)
             self.heldout_beyond_floor_ = {k: v / self.floor_ for k, v in after.items()
                                           if self.rule.mismatch(v, self.floor_)}
+            self.heldout_scale_ = None
             self.final_speed_ = dict(zip(all_idx, model.speeds([fh.point(self.final_.x)], all_idx)[0]))
             if self.torque_ is not None and self.torque_["used"]:
                 # the torque on its own, in N m, before (calibrated base) and after
@@ -1858,6 +1886,18 @@ class Diagnosis:
             else:
                 self.final_ = cal
             lap("uncertainty")
+            # a held-out recording the updated model misses, run again with every force scaled
+            # within the reported std (the phases are the updated model's): reproduced somewhere
+            # there, the miss is the scale's uncertainty on a recording that flips with it
+            missed = [i for i in held_idx if recs[i].name in self.heldout_beyond_floor_]
+            scan = heldout_along_force_scale(model, self.final_.hypothesis, self.final_, missed) \
+                if missed else None
+            self.heldout_scale_ = None if scan is None else self._scale_record(scan, recs)
+            if scan is not None:
+                for k, e in self.heldout_scale_["recordings"].items():
+                    self.log(f"  held-out {k} along the force scale (x{scan['factors'][0]:.3f}-"
+                             f"x{scan['factors'][-1]:.3f}): {e['min']:.1f}-{e['max']:.1f}x the floor")
+                lap("heldout_scale")
             self.n_runs_ = model.n_runs_
             self.n_failed_ = model.n_failed_
         self.recordings_ = recs

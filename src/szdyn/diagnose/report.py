@@ -41,6 +41,9 @@ COMPARED = (f"smoothed band speed omega_b (Savitzky-Golay derivative of theta_b,
 UNITS = {"rmse": "rad/s", "heldout_rmse": "rad/s", "noise_floor": "rad/s", "t0": "s", "t1": "s",
          "score (mismatch)": "segment RMS / noise floor (1)",
          "ratio (heldout_beyond_floor)": "held-out RMSE of the final model / noise floor (1)",
+         "heldout_force_scale": "sigma: reported std of mu_k relative to mu_k (1); points: steps along the "
+                                "force scale in sigma (1); factors: every force's factor (1); over_floor, "
+                                "min, max: held-out RMSE / noise floor (1); at_factor: the factor of min (1)",
          "score (effect)": "share of the calibrated model's excess residual energy over the noise floor "
                            "that the effect explains (1; linearised for candidates not refitted)",
          "per_mu_k (effect primary)": "the effect parameter's own unit (mu_k is 1)",
@@ -284,6 +287,7 @@ def _to_json(d) -> dict:
                           "fit_rmse": fin.rmse_fit,
                           "per_recording": d.heldout_["after"]["per_recording"]}},
         "heldout_beyond_floor": [{"recording": k, "ratio": v} for k, v in d.heldout_beyond_floor_.items()],
+        "heldout_force_scale": d.heldout_scale_,
         "split": {"heldout": [r.name for r in d.recordings_ if r.role != "fit"], "first": d.first_split_,
                   "unused": d.unused_split_, "hidden": d.hidden_conditions_},
         "wheel_phase": {**d.phase_, "recordings": d.phases_},
@@ -316,6 +320,29 @@ def _segments_md(segments) -> list:
     return (["| recording | t0 (s) | t1 (s) | regime | score (RMS / floor) |", "|---|---|---|---|---|"]
             + [f"| {m['recording']} | {m['t0']:.2f} | {m['t1']:.2f} | {m['regime']} | {m['score']:.1f} |"
                for m in segments])
+
+
+def _heldout_scale_md(d) -> list:
+    """What the missed held-out recordings do along the force scale (``heldout_scale_``)."""
+    hs = d.heldout_scale_
+    if not hs:
+        return []
+    f = hs["factors"]
+    L = [f"**The missed held-out recordings along the force scale.** The {'updated' if d.selected_ else 'calibrated'} "
+         f"model run again with every force scaled together by x{f[0]:.3f} to x{f[-1]:.3f} "
+         f"(+-1 reported std of mu_k, {hs['sigma']:.1%}, in {len(f)} steps; "
+         "`szdyn.diagnose.force_scale.heldout_along_force_scale`):"]
+    for k, e in hs["recordings"].items():
+        tried = ", ".join("failed" if r is None else f"{r:.1f}" for r in e["over_floor"])
+        if e["reproduced"]:
+            said = (f"reproduced at x{e['at_factor']:.3f} ({e['min']:.2f}x the floor): within the fitted "
+                    "uncertainty the model does reproduce it: the miss is the force scale's uncertainty "
+                    "on a recording that depends on it sharply, not evidence of something missing")
+        else:
+            said = (f"nowhere within {d.rule.min_excess:g}x the floor (best {e['min']:.1f}x, at "
+                    f"x{e['at_factor']:.3f}): not the force scale's uncertainty alone")
+        L.append(f"- `{k}`: {said}; RMSE / floor at the steps {tried}; {e['max']:.1f}x at worst.")
+    return L + [""]
 
 
 def _split_md(d) -> list:
@@ -587,6 +614,7 @@ def _report_md(d, js) -> str:
               "manifest `[split]`, and run again), or they are less reproducible than the floor "
               "estimate says (near the full-slip cliff: on szdyn's grid a 2 % change of mu_k "
               "decided between tracking and slipping on one such recording).", ""]
+        L += _heldout_scale_md(d)
     L += _split_md(d) + _restart_md(d) + _second_look_md(d) + _heavy_look_md(d)
     o = d.weighting_["other_pass"]
     if o is not None:
