@@ -952,7 +952,7 @@ def test_report_says_which_pass_of_an_exchanged_split_is_the_answer():
 
 def test_a_missed_heldout_recording_along_the_force_scale_is_recorded_and_reported():
     from szdyn.diagnose.diagnosis import Diagnosis
-    from szdyn.diagnose.report import _heldout_scale_md
+    from szdyn.diagnose.report import _heldout_scale_md, _split_md
 
     recs = [Namespace(name="a_up"), Namespace(name="b_fast"), Namespace(name="c_down")]
     d = Namespace(floor_=0.01, rule=SelectionRule(), heldout_beyond_floor_={"b_fast": 7.9, "c_down": 4.0},
@@ -971,10 +971,19 @@ def test_a_missed_heldout_recording_along_the_force_scale_is_recorded_and_report
     text = "\n".join(_heldout_scale_md(d))
     assert "x0.952 to x1.050 (+-1 reported std of mu_k, 4.9%, in 4 steps" in text
     assert "`b_fast`: reproduced at x0.976 (0.73x the floor)" in text and "14.4x at worst" in text
+    assert "14.4x at worst. Within the fitted uncertainty the model does reproduce it" in text
     assert "`c_down`: nowhere within 1.3x the floor (best 3.9x, at x1.025)" in text
+    assert "4.2x at worst. Not the force scale's uncertainty alone." in text
     assert "8.0, 0.7, 7.6, 14.4" in text and "4.1, failed, 3.9, 4.2" in text
+    # the exchange the first answer survived says which of the two it was
+    d.first_split_, d.hidden_conditions_ = None, []
+    d.unused_split_ = {"verdict": "unexplained", "selected": [], "calibrated_fit_over_floor": 4.6, "seconds": 257.0,
+                       "model_runs": 1848, "failed_runs": 0, "exchanged": {"b_fast": "a_up"}}
+    assert "reproduced that recording with its forces scaled within their uncertainty" in _split_md(d)[0]
+    d.unused_split_["exchanged"] = {"c_down": "a_up"}
+    assert "either less reproducible than the floor says" in _split_md(d)[0]
     d.heldout_scale_ = None
-    assert _heldout_scale_md(d) == []
+    assert _heldout_scale_md(d) == [] and "either less reproducible" in _split_md(d)[0]
 
 
 def test_split_that_holds_out_the_only_run_of_a_condition_is_reported():

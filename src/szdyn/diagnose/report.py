@@ -335,14 +335,21 @@ def _heldout_scale_md(d) -> list:
     for k, e in hs["recordings"].items():
         tried = ", ".join("failed" if r is None else f"{r:.1f}" for r in e["over_floor"])
         if e["reproduced"]:
-            said = (f"reproduced at x{e['at_factor']:.3f} ({e['min']:.2f}x the floor): within the fitted "
-                    "uncertainty the model does reproduce it: the miss is the force scale's uncertainty "
-                    "on a recording that depends on it sharply, not evidence of something missing")
+            said, why = (f"reproduced at x{e['at_factor']:.3f} ({e['min']:.2f}x the floor)",
+                         " Within the fitted uncertainty the model does reproduce it: the miss is the "
+                         "force scale's uncertainty on a recording that depends on it sharply, not "
+                         "evidence of something missing.")
         else:
-            said = (f"nowhere within {d.rule.min_excess:g}x the floor (best {e['min']:.1f}x, at "
-                    f"x{e['at_factor']:.3f}): not the force scale's uncertainty alone")
-        L.append(f"- `{k}`: {said}; RMSE / floor at the steps {tried}; {e['max']:.1f}x at worst.")
+            said, why = (f"nowhere within {d.rule.min_excess:g}x the floor (best {e['min']:.1f}x, at "
+                         f"x{e['at_factor']:.3f})", " Not the force scale's uncertainty alone.")
+        L.append(f"- `{k}`: {said}; RMSE / floor at the steps {tried}; {e['max']:.1f}x at worst.{why}")
     return L + [""]
+
+
+def _all_reproduced_along_scale(d, names) -> bool:
+    """Whether every recording of ``names`` was reproduced along the force scale (``heldout_scale_``)."""
+    hs = getattr(d, "heldout_scale_", None)
+    return bool(hs) and all(hs["recordings"].get(k, {}).get("reproduced", False) for k in names)
 
 
 def _split_md(d) -> list:
@@ -383,8 +390,11 @@ def _split_md(d) -> list:
               + ". A second pass with " + ", ".join(f"`{k}` fitted and `{v}` held out" for k, v in u["exchanged"].items())
               + f" said {u['verdict']} (calibrated base {u['calibrated_fit_over_floor']:.2f}x the floor; "
               f"{u['seconds']:.0f} s, {u['model_runs']} model runs), so the effect named here stands; "
-              "that recording is either less reproducible than the floor says or shows something this "
-              "model does not have.", ""]
+              + ("the updated model reproduced that recording with its forces scaled within their "
+                 "uncertainty (above), so it depends sharply on the force scale."
+                 if _all_reproduced_along_scale(d, u["exchanged"]) else
+                 "that recording is either less reproducible than the floor says or shows something this "
+                 "model does not have."), ""]
     return L
 
 
