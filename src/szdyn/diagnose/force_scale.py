@@ -36,7 +36,7 @@ local.
 along the same direction, within one reported standard deviation of the kinetic friction. A
 recording near the full-slip cliff can flip with the scale: seed 44's 0.5 kg ramp to 2 pi went
 from 7.9 noise floors (the updated encoder_scale model) to 0.7 with every force x0.963 and back to
-7.6 at x0.98, and the truth's own forces x0.98 or x1.02 missed it by 7-8 floors
+7.6 at x0.98, and the truth's own forces x0.98 or x1.02 missed it by 6.9-7.9 floors
 (docs/DIAGNOSIS-DESIGN.md, "A held-out recording on a knife edge"). Reproduced somewhere
 within that band, the miss is the scale's uncertainty, not missing physics.
 """
