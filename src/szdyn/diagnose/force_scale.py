@@ -78,6 +78,12 @@ def force_scale_direction(hyp: Hypothesis, x) -> np.ndarray:
     return np.array([p.force_power * (1.0 if p.log else xj) for p, xj in zip(hyp.params, x)])
 
 
+def _effect_holds(hyp: Hypothesis, x) -> bool:
+    """Whether ``hyp``'s effect at ``x`` is still the effect (its primary finite): a drive
+    compliance scaled below the rigid limit is a rigid drive, another model."""
+    return hyp.candidate is None or math.isfinite(hyp.candidate.primary_of(hyp.candidate_values(x)))
+
+
 def force_scale_secant(model: FeatureModel, hyp: Hypothesis, res: FitResult, which,
                        step: float = FORCE_SCALE_STEP) -> FitResult:
     """``res`` with its standard deviations and correlations recomputed from its Jacobian
@@ -117,9 +123,7 @@ def force_scale_secant(model: FeatureModel, hyp: Hypothesis, res: FitResult, whi
     if model.any_failed(pts, which):
         # a failed run's feature is zeros: its "change" would be the whole band speed
         why = "a run along the scale failed"
-    elif hyp.candidate is not None and not all(
-            math.isfinite(hyp.candidate.primary_of(hyp.candidate_values(res.x + a * step * s)))
-            for a in (1, -1)):
+    elif not all(_effect_holds(hyp, res.x + a * step * s) for a in (1, -1)):
         # e.g. a drive compliance scaled below the rigid limit: the model jumps to a rigid drive
         why = "the effect turns into another model along the scale"
     if why is not None:
@@ -164,23 +168,18 @@ def heldout_along_force_scale(model: FeatureModel, hyp: Hypothesis, res: FitResu
     if not (math.isfinite(sigma) and sigma > 0.0):
         return None
     s = force_scale_direction(hyp, res.x)
-    xs = [res.x + a * sigma * s for a in points]
     # a step whose effect turns into another model (a drive scaled past the rigid limit) is
-    # not the updated model scaled: skipped, as in force_scale_secant
-    ok = [hyp.candidate is None or math.isfinite(hyp.candidate.primary_of(hyp.candidate_values(x)))
-          for x in xs]
-    pts = [hyp.point(x) for x, good in zip(xs, ok) if good]
+    # not the updated model scaled: skipped (None), as in force_scale_secant
+    pts = [hyp.point(x) if _effect_holds(hyp, x) else None for x in (res.x + a * sigma * s for a in points)]
+    run = [pt for pt in pts if pt is not None]
     rmse = {}
     for i in which:
-        rows = iter(model.residuals(pts, [i]) if pts else [])
+        rows = iter(model.residuals(run, [i]) if run else [])
         per = []
-        for x, good in zip(xs, ok):
-            if not good:
-                per.append(None)
-                continue
-            r = next(rows)
+        for pt in pts:
+            r = None if pt is None else next(rows)
             # a failed run's feature is zeros: its RMSE would be the whole band speed
-            per.append(None if model.any_failed([hyp.point(x)], [i]) else rms(r))
+            per.append(None if pt is None or model.any_failed([pt], [i]) else rms(r))
         rmse[i] = per
     return {"sigma": float(sigma), "points": [float(a) for a in points],
             "factors": [math.exp(a * sigma) for a in points], "rmse": rmse}
