@@ -940,7 +940,7 @@ def test_report_says_which_pass_of_an_exchanged_split_is_the_answer():
     d.first_split_ = {**first, "verdict": "none", "selected": []}
     assert "said none: the calibrated base reproduced the fit recordings (7.00x the floor)" in _split_md(d)[0]
     # the second pass named nothing: the first answer stands, and the report says what the second said
-    d = Namespace(first_split_=None, rule=SelectionRule(), heldout_beyond_floor_={"b_down": 26.6},
+    d = Namespace(first_split_=None, rule=SelectionRule(), heldout_beyond_floor_={"b_down": 26.6}, heldout_scale_=None,
                   hidden_conditions_=[], unused_split_={"verdict": "unexplained", "selected": [], "calibrated_fit_over_floor": 3.2,
                                  "seconds": 700.0, "model_runs": 1800, "failed_runs": 0,
                                  "exchanged": {"b_down": "a_down"}})

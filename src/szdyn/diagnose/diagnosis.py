@@ -1857,7 +1857,6 @@ class Diagnosis:
             # fit recordings are reproduced is reported, not acted on (the verdict stands)
             self.heldout_beyond_floor_ = {k: v / self.floor_ for k, v in after.items()
                                           if self.rule.mismatch(v, self.floor_)}
-            self.heldout_scale_ = None
             self.final_speed_ = dict(zip(all_idx, model.speeds([fh.point(self.final_.x)], all_idx)[0]))
             if self.torque_ is not None and self.torque_["used"]:
                 # the torque on its own, in N m, before (calibrated base) and after
@@ -1892,8 +1891,9 @@ class Diagnosis:
             missed = [i for i in held_idx if recs[i].name in self.heldout_beyond_floor_]
             scan = heldout_along_force_scale(model, self.final_.hypothesis, self.final_, missed) \
                 if missed else None
-            self.heldout_scale_ = None if scan is None else self._scale_record(scan, recs)
+            self.heldout_scale_ = None
             if scan is not None:
+                self.heldout_scale_ = self._scale_record(scan, recs)
                 for k, e in self.heldout_scale_["recordings"].items():
                     self.log(f"  held-out {k} along the force scale (x{scan['factors'][0]:.3f}-"
                              f"x{scan['factors'][-1]:.3f}): {e['min']:.1f}-{e['max']:.1f}x the floor")

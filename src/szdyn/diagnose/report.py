@@ -348,7 +348,7 @@ def _heldout_scale_md(d) -> list:
 
 def _all_reproduced_along_scale(d, names) -> bool:
     """Whether every recording of ``names`` was reproduced along the force scale (``heldout_scale_``)."""
-    hs = getattr(d, "heldout_scale_", None)
+    hs = d.heldout_scale_
     return bool(hs) and all(hs["recordings"].get(k, {}).get("reproduced", False) for k in names)
 
 
