@@ -310,14 +310,9 @@ def test_rivals_are_the_next_screened_candidates_when_the_winner_leaves_the_fit_
     # slider_viscous seed 15: encoder_scale selected at 4.7 floors, the drag ranked third
     assert rivals(rule, ["encoder_scale"], 4.7e-2, 1e-2, ranking, refitted, 2) == ["slider_viscous", "load_lift"]
     assert rivals(rule, ["encoder_scale"], 4.7e-2, 1e-2, ranking, refitted, 1) == ["slider_viscous"]
-    # nothing selected while the mismatch is significant (drive_compliance seed 90, cost
-    # configuration: the shortlist explained nothing, the compliance screened third): the next ones
-    assert rivals(rule, [], math.nan, 1e-2, ranking, refitted, 2, mismatch=True) == ["slider_viscous", "load_lift"]
-    # within rule.rival_floor (2) floors, nothing selected and no mismatch, or switched off: no rivals
+    # within rule.rival_floor (2) floors, nothing selected, or switched off: no rivals
     assert rivals(rule, ["encoder_scale"], 2.0e-2, 1e-2, ranking, refitted, 2) == []
-    assert rivals(rule, ["encoder_scale"], 2.0e-2, 1e-2, ranking, refitted, 2, mismatch=True) == []
     assert rivals(rule, [], math.nan, 1e-2, ranking, refitted, 2) == []
-    assert rivals(rule, [], math.nan, 1e-2, ranking, refitted, 0, mismatch=True) == []
     assert rivals(rule, ["encoder_scale"], 4.7e-2, 1e-2, ranking, refitted, 0) == []
 
 
@@ -1153,7 +1148,6 @@ def test_diagnosis_json_schema(viscous):
     assert nom["feature"] in FEATURES and 0.0 <= nom["r2"] <= 1.0 and set(nom["added"]) <= set(nom["ids"])
     assert all(e["refitted"] for e in d["effects"] if e["id"] in nom["ids"])
     assert all(e["refitted"] for e in d["effects"] if e["id"] in d["rivals"])
-    assert (d["rivals_reason"] is None) == (not d["rivals"])
     # what the recordings can see: every screened effect's smallest flagged amplitude; the
     # concealed drag, flagged and named, was larger than its own
     for e in d["effects"]:

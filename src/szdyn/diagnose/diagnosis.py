@@ -20,8 +20,7 @@ Steps (each a module of its own):
    :class:`~.selection.SelectionRule` (held-out data + information criterion; an effect is
    named only if its refit comes within a few noise floors, :func:`~.selection.decide`),
    after refitting the next screened candidates too when the provisional winner leaves the
-   fit above two floors, or when none explains a significant mismatch
-   (:func:`~.selection.rivals`);
+   fit above two floors (:func:`~.selection.rivals`);
 5. keep the refitted model of the selected effect as the updated model;
 6. if that said "none" or named an effect while a held-out recording is far off, exchange it
    with a similar fit recording and run steps 1-5 again (:mod:`.split`; a named effect stands
@@ -255,8 +254,8 @@ class Diagnosis:
         from there (a stalled fit, not a minimum: :func:`~.fit.linear_step`). 0: never.
     rivals : int
         When the candidate the shortlist selects leaves the fit above ``rule.rival_floor`` noise
-        floors, or the shortlist selects none while the mismatch is significant, the next this
-        many of the linear screening are refitted too before deciding (0: never).
+        floors, the next this many of the linear screening are refitted too before deciding
+        (0: never).
     exchange_split : bool
         When the fit recordings show nothing but a held-out one is missed by more than
         ``rule.max_remaining`` floors, run again with it fitted and a similar fit recording held
@@ -395,10 +394,7 @@ class Diagnosis:
         Per refitted candidate: ``result`` (FitResult), ``heldout_rmse``, scores.
     rivals_ : list of str
         Candidates refitted as rivals of a provisional winner that left the fit above
-        ``rule.rival_floor`` noise floors, or because the shortlist explained nothing
-        (:func:`~.selection.rivals`; [] if none).
-    rivals_reason_ : str or None
-        Why they were refitted, in words (None when ``rivals_`` is empty).
+        ``rule.rival_floor`` noise floors (:func:`~.selection.rivals`; [] if none).
     ablation_ : dict or None
         The base model refitted alone from the best eligible candidate's coefficients:
         ``candidate``, ``rmse_fit``, ``calibrated_rmse_fit`` (before) and ``adopted`` (it fitted
@@ -1669,20 +1665,13 @@ class Diagnosis:
             # 4.7x the floor). The next screened candidates are refitted too, and continued if one
             # of them now leads.
             dec = decision()
-            # A significant mismatch that no shortlisted candidate explains says the same of the
-            # ranking, so the next screened candidates are refitted then too
             extra = rivals(self.rule, dec.selected,
                            self.refits_[dec.selected[0]]["result"].rmse_fit if dec.selected else math.nan,
-                           self.floor_, [q["id"] for q in self.screening_], self.refits_, self.rivals,
-                           mismatch=self.mismatch_)
+                           self.floor_, [q["id"] for q in self.screening_], self.refits_, self.rivals)
             self.rivals_ = extra
-            self.rivals_reason_ = None
             if extra:
-                self.rivals_reason_ = (
-                    f"the provisional winner, {dec.selected[0]}, left the fit above "
-                    f"{self.rule.rival_floor:g}x the floor" if dec.selected
-                    else "no candidate of the shortlist explained the mismatch")
-                self.log(f"{self.rivals_reason_}: also refitting the next screened {', '.join(extra)}")
+                self.log(f"{dec.selected[0]} leaves the fit above {self.rule.rival_floor:g}x the floor: "
+                         f"also refitting the next screened {', '.join(extra)}")
                 for cid in extra:
                     refit(cid)
                 lap("rivals")

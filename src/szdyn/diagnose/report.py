@@ -301,7 +301,6 @@ def _to_json(d) -> dict:
         "location": {"recordings": d.location_["recordings"], "follows": d.location_["follows"]},
         "nominated": d.nominated_,
         "rivals": list(d.rivals_),
-        "rivals_reason": d.rivals_reason_ if d.rivals_ else None,
         "probing": d.probing_,
         "not_refitted": d.not_refitted_,
         "sensor_not_settling": d.sensor_not_settling_,
@@ -710,12 +709,11 @@ def _report_md(d, js) -> str:
           f"searched over its range at the uncalibrated coefficients ({AMPLITUDE_GRID}-point scan, then a "
           f"bounded Brent search) when the refits still leave more than {d.rule.max_remaining:g}x the floor; "
           f"the next {d.rivals} of the screening "
-          f"too when the provisional winner left the fit above {d.rule.rival_floor:g}x the floor, or "
-          "when none of the shortlist explained the mismatch). "
+          f"too when the provisional winner left the fit above {d.rule.rival_floor:g}x the floor). "
           f"Rule: {d.rule}.", "",
           _nominated_md(d), "", _probing_md(d), "",
-          *([f"Rivals refitted because {d.rivals_reason_}: "
-             + ", ".join(f"`{k}`" for k in d.rivals_) + ".", ""] if d.rivals_ else []),
+          *([f"Rivals refitted because the provisional winner left the fit above {d.rule.rival_floor:g}x "
+             "the floor: " + ", ".join(f"`{k}`" for k in d.rivals_) + ".", ""] if d.rivals_ else []),
           "| effect | score | screen RMSE | refit RMSE | held-out RMSE | dBIC | eligible | selected | refit |",
           "|---|---|---|---|---|---|---|---|---|"]
     for e in js["effects"]:

@@ -270,24 +270,12 @@ def nominate(follows, library, *, min_r2: float) -> list:
 
 
 def rivals(rule: SelectionRule, selected, rmse_selected: float, floor: float, ranking, refitted,
-           n: int, *, mismatch: bool = False) -> list:
+           n: int) -> list:
     """Candidates to refit as well before deciding: the next ``n`` of the linear screening's
     ``ranking`` (ids, best first) not in ``refitted``, when the provisionally ``selected``
-    candidate (list of ids) leaves the fit above ``rule.rival_floor`` noise floors (fit RMSE
-    ``rmse_selected``, floor ``floor``, rad/s), or when none is selected ([]) while the
-    calibrated base misses the fit recordings significantly (``mismatch``); else [].
-
-    Both say the same about the shortlist: the linear screening that made it ranks worst where
-    the calibration is far off or ranks every candidate alike (drive_compliance seed 90 in the
-    issue's cost configuration: every candidate screened at 0.0080-0.0087 rad/s against the
-    base's 0.0114, the compliance third; the two refitted explained nothing, and it was never
-    refitted)."""
-    if n <= 0:
-        return []
-    if selected:
-        if rmse_selected <= rule.rival_floor * floor:
-            return []
-    elif not mismatch:
+    candidate (list of ids, [] for none) leaves the fit above ``rule.rival_floor`` noise floors
+    (fit RMSE ``rmse_selected``, floor ``floor``, rad/s); else []."""
+    if n <= 0 or not selected or rmse_selected <= rule.rival_floor * floor:
         return []
     return [c for c in ranking if c not in refitted][:n]
 
