@@ -120,6 +120,14 @@ class Candidate:
         :meth:`~szdyn.diagnose.diagnosis.Diagnosis._starts` and the fourth start (default,
         slider_stribeck). False: they are tried besides them (slider_viscous, whose fourth
         start named it on seed 20).
+    phase_ladder : tuple of float
+        Values of the candidate's single parameter tried, each with the fit recordings' wheel
+        phases estimated at it, by a phase-profiled step of its refit
+        (:meth:`~szdyn.diagnose.diagnosis.Diagnosis._phase_step`), and the reason it is
+        refitted in every pass with such steps. For an effect that moves the wheel's angle
+        against the measured motor angle: the phases estimated at a base model without it
+        absorb that shift, and at them the effect cannot lower the cost (drive_compliance seed
+        90, docs/DIAGNOSIS-DESIGN.md, "A drive compliance the wheel phases hide"). Empty: none.
     """
 
     id: str
@@ -134,6 +142,7 @@ class Candidate:
     force_scaled: bool = False
     probes: Callable | None = None
     probes_only: bool = True
+    phase_ladder: tuple = ()
 
     @property
     def own_probes_replace(self) -> bool:
@@ -165,6 +174,13 @@ def _periodic(v):
 #: frequency: the features cannot tell it from rigid. Stiffer drives only cost time: the fit's
 #: start clipped to its bound (compliance 2e-9, k_drive 5e8 N*m/rad) made every run crawl.
 RIGID_COMPLIANCE = 0.01
+
+#: Drive compliances (rad/(N*m)) tried with profiled wheel phases (``Candidate.phase_ladder``):
+#: wind-ups of 0.6-6.3 deg under the reference friction torque tau_k = 0.074 N*m, log-spaced
+#: (ratio 1.6; szdyn.synth draws 1-5 deg). On drive_compliance seed 90 (truth 0.346) the fit
+#: with profiled phases improved over 0.1-0.45 (2.25 -> 1.32 noise floors at best), a window
+#: that steps of 1.6 cannot jump.
+COMPLIANCE_LADDER = tuple(math.radians(a) / 0.074 for a in (0.6, 1.0, 1.6, 2.5, 4.0, 6.3))
 
 
 def _compliance(v):
@@ -323,7 +339,7 @@ CANDIDATES: dict[str, Candidate] = {c.id: c for c in (
                                            if v["drive_compliance"] >= RIGID_COMPLIANCE else math.inf),
         "tau_w = k_drive (q_m - q_w) + c_drive (u_m - u_w),  q_m the measured motor angle",
         "wind-up between motor encoder and wheel: lag in ramps, oscillation after speed changes",
-        signature=("band_accel",), force_scaled=True),
+        signature=("band_accel",), force_scaled=True, phase_ladder=COMPLIANCE_LADDER),
     Candidate(
         "encoder_scale", "sensor",
         (FitParam("encoder_scale", "1", -0.2, 0.2, 0.01),),

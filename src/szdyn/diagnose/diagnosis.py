@@ -798,22 +798,29 @@ class Diagnosis:
         """
         max_jac = 2 * self.max_jac if max_jac is None else max_jac
         entry = dict(model.phases)
+        ladder = h.candidate.phase_ladder if h.candidate is not None else ()
         try:
             for k in range(self._steps):
                 d = gauss_newton_step(model, h, res, fit_idx)
+                trials = [(f"{a:g} of the linear step", h.inside(res.x + a * d)) for a in PHASE_STEP_FRACTIONS]
+                if ladder and k == 0:
+                    # the effect's own ladder: the linear step is taken at held phases, where an
+                    # effect that is itself a shift of the wheel's phase cannot lower the cost
+                    name = h.candidate.params[0].name
+                    trials += [(f"{name} = {v:.3g}", h.inside(h.coordinates({**h.values(res.x), name: v})))
+                               for v in ladder]
                 saved, best = dict(model.phases), None
-                for a in PHASE_STEP_FRACTIONS:
-                    z = h.inside(res.x + a * d)
+                for label, z in trials:
                     e = estimate_phases(model, h.point(z), fit_idx)
                     model.phases = {**saved, **identified_phases(e)}
                     r = model.residuals([h.point(z)], fit_idx)[0]
                     if best is None or r @ r < best[0]:
-                        best = (float(r @ r), a, z, e)
+                        best = (float(r @ r), label, z, e)
                     model.phases = saved
-                rss, a, z, e = best
+                rss, label, z, e = best
                 if self.rule.indistinguishable(rss_selected=rss, rss_other=res.rss_fit, n_fit=res.n_fit):
                     break   # (also when it fits worse)
-                self.log(f"  {what}: phase-profiled step {k + 1} ({a:g} of the linear step, phases estimated "
+                self.log(f"  {what}: phase-profiled step {k + 1} ({label}, phases estimated "
                          f"there): {math.sqrt(rss / res.n_fit):.4g} rad/s (was {res.rmse_fit:.4g}); fitting on from there")
                 model.phases = {**saved, **identified_phases(e)}
                 if est is not None:
@@ -1439,6 +1446,14 @@ class Diagnosis:
                     short.append(top["id"])
                     self.log(f"probe screening: {top['id']} switched on fits at {top['rmse_probe']:.4g} "
                              f"rad/s (calibrated base {cal.rmse_fit:.4g}): also refitting it")
+            # in a pass with phase-profiled steps, a candidate with a phase ladder is refitted
+            # whatever the screenings say: they judge it at the base's phases, which hide it
+            if self.mismatch_ and self.phase_.get("steps") is not None:
+                for c in self._library():
+                    if c.phase_ladder and c.id not in short:
+                        short.append(c.id)
+                        self.log(f"{c.id} is refitted in this pass with phase-profiled steps (its "
+                                 "effect shifts the wheel's phase, which the base's phases hide)")
             lap("screen")
 
             # 5. nonlinear refit of the shortlist
