@@ -136,3 +136,62 @@ def test_no_step_when_off_or_nothing_better():
 def test_phase_steps_must_be_a_count(bad):
     with pytest.raises(ValueError, match="phase_steps"):
         Diagnosis(phase_steps=bad)
+
+
+C_TRUE = 0.35                       # rad/(N m): the stand-in's drive compliance
+WIND = 0.3 * PITCH / C_TRUE         # wheel angle the bumps move per unit compliance and unit torque
+TORQUE = np.linspace(0.5, 1.5, 10)  # relative drive torque at the bump samples
+
+
+class WindUp(BumpShift):
+    """As :class:`BumpShift` (k_c at the start is the truth), but the bumps also move with a
+    drive compliance ``c`` times the drive torque, which varies over each recording: a phase
+    estimate absorbs the mean shift of any ``c``, only the right one aligns every sample."""
+
+    def _one(self, i, mc):
+        q = mc.get("q_w0", self.phases.get(i, 0.0))
+        c = 1.0 / mc["k_drive"] if mc.get("drive_mode") == 2.0 else 0.0
+        ph = TRUE_PHASE[i] + WIND * (c - C_TRUE) * TORQUE
+        smooth = np.full(10, SMOOTH * (mc["k_c"] - START["k_c"]) / START["k_c"])
+        return np.concatenate([BUMP * np.sin(math.pi * (q - ph) / PITCH), smooth])
+
+
+def _rigid_refit(model, cand):
+    """A candidate's refit as the diagnosis leaves it at a rigid calibration: the base's phases,
+    the effect off, and an effect column the Jacobian sees flat (the held phases hide it)."""
+    res0, est = _calibrated(model, Hypothesis(START))
+    h = Hypothesis(START, CANDIDATES[cand])
+    x = np.concatenate([res0.x, np.zeros(len(h.params) - h.n_base)])
+    r = model.residuals([h.point(x)], [0, 1])[0]
+    J = np.zeros((r.size, x.size))
+    J[:, :h.n_base] = res0.J
+    rss = float(r @ r)
+    return h, FitResult(hypothesis=h, x=x, values=h.values(x), std={}, corr=np.eye(x.size), rss_fit=rss,
+                        n_fit=r.size, rmse_fit=math.sqrt(rss / r.size), nfev=1, J=J, status="converged",
+                        extra={"njac": 3})
+
+
+def test_a_phase_ladder_finds_a_compliance_the_held_phases_hide():
+    model = WindUp()
+    h, res = _rigid_refit(model, "drive_compliance")
+    assert CANDIDATES["drive_compliance"].phase_ladder
+    # held phases hide it: the true compliance fits worse than the rigid drive at them
+    r = model.residuals([h.point(h.coordinates({**h.values(res.x), "drive_compliance": C_TRUE}))], [0, 1])[0]
+    assert r @ r > res.rss_fit
+    held = dict(model.phases)
+    out = Diagnosis(phase_steps=2)._phase_step(model, h, res, [0, 1], what="refit of drive_compliance",
+                                               max_jac=2)
+    assert out is not res and out.extra["phase_steps"] >= 1
+    # within the ladder's spacing (a factor 1.6) of the truth at least, and the fit far better
+    assert out.values["drive_compliance"] == pytest.approx(C_TRUE, rel=0.1)
+    assert out.rmse_fit < 0.3 * res.rmse_fit
+    assert model.phases == held
+
+
+def test_without_a_ladder_the_flat_effect_is_not_found():
+    """The same recordings, a candidate without a ladder whose column the Jacobian sees flat:
+    the linear step has nothing to move, and no step is taken."""
+    model = WindUp()
+    h, res = _rigid_refit(model, "slider_viscous")
+    assert not CANDIDATES["slider_viscous"].phase_ladder
+    assert Diagnosis(phase_steps=2)._phase_step(model, h, res, [0, 1], max_jac=2) is res
