@@ -195,3 +195,14 @@ def test_without_a_ladder_the_flat_effect_is_not_found():
     h, res = _rigid_refit(model, "slider_viscous")
     assert not CANDIDATES["slider_viscous"].phase_ladder
     assert Diagnosis(phase_steps=2)._phase_step(model, h, res, [0, 1], max_jac=2) is res
+
+
+def test_the_report_says_why_a_ladder_candidate_was_refitted():
+    from types import SimpleNamespace
+
+    from szdyn.diagnose.report import _nominated_md
+    n = {"feature": "band_accel", "r2": 0.1, "ids": [], "added": []}
+    d = SimpleNamespace(nominated_={**n, "phase_ladder": ["drive_compliance"]}, nominate_r2=0.3, mismatch_=True)
+    assert _nominated_md(d).startswith("`drive_compliance` refitted because this pass takes phase-profiled steps")
+    d.nominated_ = {**n, "phase_ladder": []}
+    assert "phase-profiled" not in _nominated_md(d)

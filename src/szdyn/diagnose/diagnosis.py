@@ -371,7 +371,9 @@ class Diagnosis:
     nominated_ : dict
         ``feature`` and ``r2``: what the calibrated fit residual follows most (fit recordings);
         ``ids``: candidates refitted because their signature holds that feature;
-        ``added``: those of them the linear screening had not shortlisted.
+        ``added``: those of them the linear screening had not shortlisted; ``phase_ladder``:
+        candidates with a phase ladder refitted because the pass takes phase-profiled steps
+        (:attr:`~.candidates.Candidate.phase_ladder`), where nothing else had shortlisted them.
     probing_ : list of dict
         Per candidate and kind of probe (a candidate whose own probes are tried besides the
         bound-fraction ones, slider_viscous, has two entries, told apart by ``own_probes``):
@@ -1448,10 +1450,12 @@ class Diagnosis:
                              f"rad/s (calibrated base {cal.rmse_fit:.4g}): also refitting it")
             # in a pass with phase-profiled steps, a candidate with a phase ladder is refitted
             # whatever the screenings say: they judge it at the base's phases, which hide it
+            self.nominated_["phase_ladder"] = []
             if self.mismatch_ and self.phase_.get("steps") is not None:
                 for c in self._library():
                     if c.phase_ladder and c.id not in short:
                         short.append(c.id)
+                        self.nominated_["phase_ladder"].append(c.id)
                         self.log(f"{c.id} is refitted in this pass with phase-profiled steps (its "
                                  "effect shifts the wheel's phase, which the base's phases hide)")
             lap("screen")

@@ -150,6 +150,11 @@ def _nominated_md(d) -> str:
     n = d.nominated_
     head = (f"On the fit recordings the calibrated residual follows `{n['feature']}` most "
             f"(R^2 {n['r2']:.2f}; nomination threshold {d.nominate_r2}).")
+    if n.get("phase_ladder"):
+        head = (", ".join(f"`{k}`" for k in n["phase_ladder"]) + " refitted because this pass takes "
+                "phase-profiled steps: its effect shifts the wheel's phase, which the phases estimated at "
+                "the base absorb, so it is tried at amplitudes on a ladder, each with its own phases, "
+                "whatever the screenings (made at the base's phases) say. " + head)
     if n["added"]:
         return head + " Refitted for that too, whatever their linear screening: " + \
             ", ".join(f"`{k}`" for k in n["added"]) + "."
