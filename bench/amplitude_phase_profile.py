@@ -25,15 +25,15 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "src"))
+sys.path.insert(0, str(ROOT / "bench"))
 
+from optimum_vs_truth import BASE  # noqa: E402
 from szdyn.diagnose.candidates import CANDIDATES  # noqa: E402
 from szdyn.diagnose.data import prepare  # noqa: E402
 from szdyn.diagnose.engine import FeatureModel, rms  # noqa: E402
 from szdyn.diagnose.fit import Hypothesis  # noqa: E402
 from szdyn.diagnose.phase import estimate_phases, identified_phases  # noqa: E402
 from szdyn.manifest import read_manifest  # noqa: E402
-
-BASE = ("k_c", "b_c", "k_imp", "mu_s", "mu_k")
 
 
 def profile(case: Path, effect: str, param: str, values, heldout: str | None = None) -> list:

@@ -5,6 +5,7 @@ shift with a coefficient (here k_c), and the rest of the residual fixes that coe
 phases estimated at the calibration every step of k_c towards the truth misaligns the bumps and
 fits worse; with the phases estimated at the trial point itself it fits at the truth.
 """
+import dataclasses
 import math
 
 import numpy as np
@@ -188,13 +189,19 @@ def test_a_phase_ladder_finds_a_compliance_the_held_phases_hide():
     assert model.phases == held
 
 
-def test_without_a_ladder_the_flat_effect_is_not_found():
-    """The same recordings, a candidate without a ladder whose column the Jacobian sees flat:
-    the linear step has nothing to move, and no step is taken."""
+def test_without_its_ladder_the_compliance_is_not_found():
+    """The same recordings and the same candidate with its ladder taken away: the linear step,
+    whose effect column the Jacobian sees flat, has nothing to move, and no step is taken."""
     model = WindUp()
-    h, res = _rigid_refit(model, "slider_viscous")
-    assert not CANDIDATES["slider_viscous"].phase_ladder
+    h, res = _rigid_refit(model, "drive_compliance")
+    h = Hypothesis(START, dataclasses.replace(CANDIDATES["drive_compliance"], phase_ladder=()))
+    res = dataclasses.replace(res, hypothesis=h)
     assert Diagnosis(phase_steps=2)._phase_step(model, h, res, [0, 1], max_jac=2) is res
+
+
+def test_a_phase_ladder_needs_a_single_parameter():
+    with pytest.raises(ValueError, match="single parameter"):
+        dataclasses.replace(CANDIDATES["position_periodic"], phase_ladder=(0.1,))
 
 
 def test_the_report_says_why_a_ladder_candidate_was_refitted():

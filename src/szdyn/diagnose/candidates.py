@@ -144,6 +144,12 @@ class Candidate:
     probes_only: bool = True
     phase_ladder: tuple = ()
 
+    def __post_init__(self):
+        # the ladder sets the candidate's one parameter (Diagnosis._phase_step)
+        if self.phase_ladder and len(self.params) != 1:
+            raise ValueError(f"candidate {self.id}: a phase ladder needs a single parameter, "
+                             f"it has {len(self.params)}")
+
     @property
     def own_probes_replace(self) -> bool:
         """Its own ``probes`` replace the bound-fraction probes and the fourth start."""
