@@ -39,7 +39,8 @@ def test_summary_counts_and_marks_wrong_answers():
             mod.score(_case("load_lift", ["load_lift"], truth_param=0.04, fitted_param=0.038))]
     md = mod.summary_md(rows, 39)
     assert "Named: 1/2; null cases with no effect named: 1/1." in md
-    assert "| slider_viscous | **`encoder_scale`** |" in md and "| load_lift | `load_lift` | 5.0 % |" in md
+    assert "| slider_viscous | - | **`encoder_scale`** |" in md
+    assert "| load_lift | - | `load_lift` | 5.0 % |" in md
 
 
 def test_unknown_effect_is_refused(capsys):
@@ -83,3 +84,41 @@ def test_a_finished_case_run_with_other_options_is_refused(tmp_path):
     assert mod.main(["--work", str(tmp_path), "--effect", "none,load_lift",
                      "--diagnose-args", "--phase-steps 2"]) == 0
     assert "--diagnose-args '--phase-steps 2'" in (tmp_path / "cost-summary.md").read_text()
+
+
+def test_amplitude_factor_sets_the_top_of_the_range_times_f():
+    """``--amplitude-factor F``: F times the top of the effect's realistic range, a seeded sign
+    only for the signed effects, the same on every call; the summary says the factor and shows
+    each case's amplitude."""
+    mod = _bench()
+    for eff, e in mod.EFFECTS.items():
+        a = mod.amplitude_at(eff, 1.5, 92)
+        assert abs(a) == pytest.approx(1.5 * e.range[1])
+        assert a > 0 or e.signed
+        assert mod.amplitude_at(eff, 1.5, 92) == a
+    signs = {mod.amplitude_at("friction_asymmetry", 1.0, s) > 0 for s in range(20)}
+    assert signs == {True, False}
+    rows = [mod.score(_case("load_lift", ["load_lift"], amplitude=2.25, amplitude_factor=1.5))]
+    md = mod.summary_md(rows, 92)
+    assert md.startswith("# The issue's cost configuration, load_lift (seed 92, amplitudes at 1.5x "
+                         "the top of the range)")
+    assert "--effect load_lift --amplitude-factor 1.5`" in md and "| load_lift | 2.25 |" in md
+
+
+def test_a_bad_factor_or_a_case_run_at_another_factor_is_refused(tmp_path, capsys):
+    import json
+
+    mod = _bench()
+    with pytest.raises(SystemExit):
+        mod.main(["--work", str(tmp_path), "--effect", "none", "--amplitude-factor", "0"])
+    assert "--amplitude-factor must be a finite number > 0, got 0" in capsys.readouterr().err
+    for eff in ("none", "load_lift"):
+        (tmp_path / eff).mkdir()
+        (tmp_path / eff / "cost.json").write_text(json.dumps(
+            _case(eff, [], noise_floor=0.005, amplitude_factor=1.5)))
+    with pytest.raises(SystemExit) as exc:
+        mod.main(["--work", str(tmp_path), "--effect", "none,load_lift"])
+    assert str(tmp_path / "none" / "cost.json") in str(exc.value) and "1.5" in str(exc.value)
+    assert not (tmp_path / "cost-summary.md").exists()
+    assert mod.main(["--work", str(tmp_path), "--effect", "none,load_lift",
+                     "--amplitude-factor", "1.5"]) == 0
