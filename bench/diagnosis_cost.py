@@ -67,11 +67,20 @@ def run_case(work: Path, effect: str, seed: int, diagnose_args: str,
     """Generate (once) and diagnose one case in ``work``; its result, also in ``work/cost.json``.
     ``amplitude_factor``: see :func:`amplitude_at` (default: the amplitude drawn by the seed)."""
     data, out = work / "data", work / "diagnosis"
+    amp = None if amplitude_factor is None or effect == "none" else \
+        amplitude_at(effect, amplitude_factor, seed)
     if not (data / "truth.json").is_file():
-        amp = None if amplitude_factor is None or effect == "none" else \
-            amplitude_at(effect, amplitude_factor, seed)
         synthesize(data, effect, amplitude=amp, seed=seed, loads_kg=(1.0,), ramps=RAMPS, dt=5e-5,
                    verbose=False)
+    else:   # recordings made before: only if they are the ones asked for
+        made = json.loads((data / "truth.json").read_text())
+        same = made.get("effect") == effect and made.get("seed") == seed and (
+            effect == "none" or (made.get("amplitude_drawn") if amp is None else made.get("amplitude") == amp))
+        if not same:
+            raise SystemExit(f"{data / 'truth.json'}: recordings of {made.get('effect')} (seed {made.get('seed')}, "
+                             f"amplitude {made.get('amplitude')}, drawn: {made.get('amplitude_drawn')}), not the "
+                             f"{effect} asked for (seed {seed}, amplitude {'drawn' if amp is None else amp}); "
+                             "use another --work")
     # the split is the diagnosis's own choice (no [split] in the manifest): drop the generator's
     man = data / "manifest.toml"
     text = man.read_text()

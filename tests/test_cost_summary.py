@@ -122,3 +122,22 @@ def test_a_bad_factor_or_a_case_run_at_another_factor_is_refused(tmp_path, capsy
     assert not (tmp_path / "cost-summary.md").exists()
     assert mod.main(["--work", str(tmp_path), "--effect", "none,load_lift",
                      "--amplitude-factor", "1.5"]) == 0
+
+
+def test_recordings_made_for_another_case_are_refused(tmp_path):
+    """A work directory whose recordings were made for another amplitude (or effect, or seed) is
+    refused before anything runs, naming its truth.json; nothing is overwritten."""
+    import json
+
+    mod = _bench()
+    data = tmp_path / "data"
+    data.mkdir()
+    truth = {"effect": "load_lift", "seed": 92, "amplitude": 0.7, "amplitude_drawn": True}
+    (data / "truth.json").write_text(json.dumps(truth))
+    with pytest.raises(SystemExit) as exc:
+        mod.run_case(tmp_path, "load_lift", 92, "", amplitude_factor=1.5)
+    assert str(data / "truth.json") in str(exc.value) and "amplitude 2.25" in str(exc.value)
+    for eff, seed in (("slider_viscous", 92), ("load_lift", 93)):
+        with pytest.raises(SystemExit):
+            mod.run_case(tmp_path, eff, seed, "")
+    assert json.loads((data / "truth.json").read_text()) == truth
