@@ -10,7 +10,8 @@ that named none, the concealed effect's (the calibrated base, its effect off, ag
 truth), or the base model alone for a null case. Prints the RMSE of the compared band speed
 (rad/s) of the diagnosis's final model and of the truth (its perturbed coefficients and effect
 parameters; b_imp, which is not fitted, at the truth's and at the default) on the fit
-recordings, on the straight line between the two in fit coordinates (a quarter, half, three
+recordings (the diagnosis's own split, ``split.heldout`` in diagnosis.json, not the manifest's
+roles), on the straight line between the two in fit coordinates (a quarter, half, three
 quarters), and per recording, three ways:
 
 * ``default_phase``: every run from the default wheel offset;
@@ -39,6 +40,7 @@ from szdyn.diagnose.data import prepare  # noqa: E402
 from szdyn.diagnose.engine import FeatureModel, rms  # noqa: E402
 from szdyn.diagnose.fit import Hypothesis  # noqa: E402
 from szdyn.diagnose.phase import estimate_phases, identified_phases  # noqa: E402
+from szdyn.diagnose.split import with_heldout  # noqa: E402
 from szdyn.manifest import read_manifest  # noqa: E402
 
 BASE = ("k_c", "b_c", "k_imp", "mu_s", "mu_k")
@@ -61,10 +63,30 @@ def truth_coordinates(effect: str, truth: dict) -> dict:
     return {p.name: src[p.name] for p in CANDIDATES[effect].params}
 
 
+def diagnosis_roles(recs, d: dict):
+    """``recs`` with the roles of the diagnosis's final split (``split.heldout`` in
+    diagnosis.json), fit recordings first.
+
+    The manifest's roles are not the split: the cost configuration's manifest has none (every
+    recording ``fit``; the diagnosis chooses which to hold out), and a diagnosis may exchange
+    a generator's split. Comparing with the diagnosis's ``fit_rmse`` needs its own fit
+    recordings. A diagnosis.json without ``split`` keeps the manifest's roles.
+    """
+    held = (d.get("split") or {}).get("heldout")
+    if held is None:
+        return list(recs)
+    names = {r.name for r in recs}
+    unknown = sorted(set(held) - names)
+    if unknown:
+        raise ValueError(f"diagnosis.json holds out {unknown}, which the manifest does not list "
+                         f"(it lists {sorted(names)})")
+    return with_heldout(recs, held)
+
+
 def compare(case: Path) -> dict:
     d = json.loads((case / "diagnosis" / "diagnosis.json").read_text())
     truth = json.loads((case / "data" / "truth.json").read_text())
-    recs = prepare(read_manifest(case / "data" / "manifest.toml"))
+    recs = diagnosis_roles(prepare(read_manifest(case / "data" / "manifest.toml")), d)
     effect = d["selected"][0] if d["selected"] else (None if truth["effect"] == "none" else truth["effect"])
     start = {k: recs[0].params[k] for k in BASE}
     hyp = Hypothesis(start, CANDIDATES[effect]) if effect else Hypothesis(start)
