@@ -60,6 +60,8 @@ REACHABLE_FLOORS = 3.0
 #: Errors within this many reported standard deviations count as covered by them (about 95 % of
 #: a normal error with that std).
 Z_COVERED = 2.0
+#: The seeds of record are also counted in this many consecutive periods (:func:`periods`).
+PERIODS = 3
 
 
 def record(docs: Path = DOCS) -> dict:
@@ -104,15 +106,15 @@ def _case13(c: dict) -> dict:
 
 def load(files: dict, docs: Path = DOCS) -> list:
     """Every case of record (``files``: :func:`record`'s), as scored (list of dicts with
-    ``effect``, ``seed``, ``correct``, ``param_error``, ``heldout_ratio``,
+    ``effect``, ``seed``, ``file`` (the name in ``files`` it came from), ``correct``, ``param_error``, ``heldout_ratio``,
     ``heldout_over_floor`` where known)."""
     cases = []
     for seed, name in sorted(files.items()):
         d = json.loads((docs / name).read_text())
         if isinstance(d, dict):                # seed 13's file: {"_note", "cases", ...}
-            cases += [_case13(c) for c in d["cases"]]
+            cases += [{**_case13(c), "file": name} for c in d["cases"]]
             continue
-        cases += [{**c, "seed": c.get("seed", seed)} for c in d]
+        cases += [{**c, "seed": c.get("seed", seed), "file": name} for c in d]
     for c in cases:
         # scored again from the truth and the fit: seeds scored before NEUTRAL took encoder_scale's
         # error relative to the gain
@@ -140,20 +142,50 @@ def _row(cases: list) -> dict:
             "z_known": len(zs), "z_within_2": sum(z <= Z_COVERED for z in zs), "z_median": _median(zs)}
 
 
+def _nulls(nulls: list) -> dict:
+    return {"cases": len(nulls),
+            "false_discoveries": sum(bool(c["selected"]) for c in nulls),
+            "unexplained": sum(c["verdict"] == "unexplained" for c in nulls),
+            "none": sum(c["verdict"] == "none" for c in nulls)}
+
+
+def periods(seeds, parts: int = PERIODS) -> list:
+    """The seeds of record, sorted, cut into ``parts`` consecutive groups as equal as they can be
+    (the earlier groups one longer where they cannot): list of lists of int. The seeds were run
+    in this order, each with the code of its day, so the groups are periods of the code."""
+    seeds = sorted(int(k) for k in seeds)
+    n, parts = len(seeds), max(1, min(parts, len(seeds)))
+    size, extra = divmod(n, parts)
+    out, i = [], 0
+    for k in range(parts):
+        j = i + size + (k < extra)
+        out.append(seeds[i:j])
+        i = j
+    return out
+
+
 def summarize(cases: list, files: dict) -> dict:
     """Per-effect and overall counts (see the module notes) of :func:`load`'s ``cases`` from
-    ``files``, and the null cases' verdicts."""
+    ``files``, the null cases' verdicts, and the overall counts per period of the code
+    (:func:`periods`; a null case counts in the period of the seed whose file holds it)."""
     eff = [c for c in cases if c["effect"] != "none"]
     nulls = [c for c in cases if c["effect"] == "none"]
     ids = sorted({c["effect"] for c in eff})
+    by_period = []
+    for group in periods(files):
+        names = {files[k] for k in group}
+        inside = [c for c in cases if c["file"] in names]
+        by_period.append({"seeds": seed_ranges(group),
+                          "all": _row([c for c in inside if c["effect"] != "none"]),
+                          "all_but_slider_stribeck": _row([c for c in inside if c["effect"] not in
+                                                           ("none", "slider_stribeck")]),
+                          "nulls": _nulls([c for c in inside if c["effect"] == "none"])})
     return {"seeds": [min(files), max(files)], "files": {str(k): v for k, v in sorted(files.items())},
             "per_effect": {e: _row([c for c in eff if c["effect"] == e]) for e in ids},
             "all": _row(eff),
             "all_but_slider_stribeck": _row([c for c in eff if c["effect"] != "slider_stribeck"]),
-            "nulls": {"cases": len(nulls),
-                      "false_discoveries": sum(bool(c["selected"]) for c in nulls),
-                      "unexplained": sum(c["verdict"] == "unexplained" for c in nulls),
-                      "none": sum(c["verdict"] == "none" for c in nulls)}}
+            "nulls": _nulls(nulls),
+            "by_period": by_period}
 
 
 def _pct(a: int, b: int) -> str:
@@ -224,7 +256,19 @@ def markdown(s: dict) -> str:
           f"(a mismatch flagged, nothing named) on {n['unexplained']}. (Nulls 21-24 belong to the "
           "in-sample grid of seeds 11-12, nulls 36-42 to a batch of nulls run on their own; "
           "DIAGNOSIS.md counts them too.)",
-          "", f"Goals (issue 5): named >= {100 * GOAL_NAMED:.0f} %, no false discovery, parameter "
+          "", "By period: the seeds in the order they were run, each with the code of its day, cut "
+          f"into {len(s['by_period'])} consecutive groups (null cases with the seed whose file holds "
+          "them). A later period ran later code; it is still out of sample for its own seeds.", "",
+          "| seeds | named | all but slider_stribeck | parameter within 15 % | held-out >= 3x "
+          "| ... where reachable | null cases: false discoveries, `none`, `unexplained` |",
+          "|---|---|---|---|---|---|---|"]
+    for g in s["by_period"]:
+        a, b, n = g["all"], g["all_but_slider_stribeck"], g["nulls"]
+        L.append(f"| {g['seeds']} | {_pct(a['named'], a['cases'])} | {_pct(b['named'], b['cases'])} "
+                 f"| {a['param_within_15pct']}/{a['param_known']} | {a['gain_3x']}/{a['gain_known']} "
+                 f"| {a['reachable_3x']}/{a['reachable']} "
+                 f"| {n['false_discoveries']}, {n['none']}, {n['unexplained']} of {n['cases']} |")
+    L += ["", f"Goals (issue 5): named >= {100 * GOAL_NAMED:.0f} %, no false discovery, parameter "
           f"within {100 * GOAL_PARAM:.0f} %, held-out error cut >= {GOAL_GAIN:g}x.", ""]
     return "\n".join(L)
 

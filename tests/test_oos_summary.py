@@ -91,3 +91,27 @@ def test_seed_ranges_show_gaps():
     mod = _bench()
     assert mod.seed_ranges({"13": "a", "14": "b", "15": "c", "44": "d"}) == "13-15, 44"
     assert mod.seed_ranges([7]) == "7"
+
+
+def test_periods_are_consecutive_and_cover_every_seed():
+    mod = _bench()
+    assert mod.periods([13, 14, 15, 16, 17, 18, 19]) == [[13, 14, 15], [16, 17], [18, 19]]
+    assert mod.periods(["44", "13", "14"]) == [[13], [14], [44]]
+    assert mod.periods([5, 6], parts=3) == [[5], [6]]
+    seeds = sorted(mod.record())
+    groups = mod.periods(seeds)
+    assert [k for g in groups for k in g] == seeds
+    assert max(map(len, groups)) - min(map(len, groups)) <= 1
+
+
+def test_periods_add_up_to_the_whole():
+    mod = _bench()
+    files = mod.record()
+    s = mod.summarize(mod.load(files), files)
+    per = s["by_period"]
+    for key in ("cases", "named", "param_within_15pct", "param_known", "gain_3x", "reachable_3x"):
+        assert sum(g["all"][key] for g in per) == s["all"][key], key
+        assert (sum(g["all_but_slider_stribeck"][key] for g in per)
+                == s["all_but_slider_stribeck"][key]), key
+    for key in ("cases", "false_discoveries", "none", "unexplained"):
+        assert sum(g["nulls"][key] for g in per) == s["nulls"][key], key
