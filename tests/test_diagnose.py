@@ -1850,3 +1850,40 @@ def test_a_large_mismatch_leaves_the_phases_unestimated(viscous):
     assert not ph["estimated"] and ph["recordings"] == {}
     assert "phase" not in d["cost"]["seconds"]
     assert f"beyond {PHASE_GATE:g}x" in (out / "report.md").read_text()
+
+
+def test_the_next_recording_is_ranked_after_the_diagnosis_unless_switched_off(viscous, monkeypatch, capsys):
+    """The CLI runs :class:`~szdyn.diagnose.design.NextRecording` on the fitted diagnosis and
+    hands it to the report (the small viscous case has no refitted rival, so it says why not);
+    ``--no-next-recording`` hands None."""
+    from szdyn.diagnose import design, diagnosis, report
+
+    _, d, out = viscous
+    nr = d["next_recording"]
+    assert nr["contenders"] == ["slider_viscous"] and nr["recommended"] is None
+    assert "no refitted rival" in nr["why_not"] and nr["protocols"] == [] and nr["model_runs"] == 0
+    assert "## The next recording to take" in (out / "report.md").read_text()
+    assert not (out / "next_recording.png").exists()
+    seen = []
+
+    def fit(self, recs):
+        self.verdict_ = "none"
+        return self
+    monkeypatch.setattr(diagnosis.Diagnosis, "fit", fit)
+    monkeypatch.setattr(design.NextRecording, "fit", lambda self, d: seen.append("ranked") or self)
+    monkeypatch.setattr(report, "write_report", lambda d, o, next_recording=None: seen.append(next_recording) or
+                        {"selected": [], "fit": {"before": {"heldout_rmse": 1.0}, "after": {"heldout_rmse": 1.0}}})
+    man = str(out.parent / "data" / "manifest.toml")
+    assert run_main(["diagnose", man, "--out", str(out.parent / "y"), "--no-checkpoint"]) == 0
+    assert seen[0] == "ranked" and isinstance(seen[1], design.NextRecording)
+    assert run_main(["diagnose", man, "--out", str(out.parent / "y"), "--no-checkpoint", "--no-next-recording"]) == 0
+    assert seen[2:] == [None]
+
+    # a failure of the ranking (advice) costs nothing of the diagnosis: it is said, and the
+    # results are written without it
+    def broken(self, d):
+        raise RuntimeError("no pool")
+    monkeypatch.setattr(design.NextRecording, "fit", broken)
+    assert run_main(["diagnose", man, "--out", str(out.parent / "y"), "--no-checkpoint"]) == 0
+    assert seen[3:] == [None]
+    assert "the next recording was not ranked (RuntimeError: no pool)" in capsys.readouterr().err

@@ -104,7 +104,7 @@ from szdyn.io import atomic_write_text, staged_output, write_json
 
 __all__ = ["Effect", "EFFECTS", "EFFECT_IDS", "RampSpec", "DEFAULT_RAMPS", "QUICK_RAMPS",
            "PERTURBED", "SynthError", "synthesize", "synth_command", "effect_changes",
-           "perturbed_coefficients"]
+           "perturbed_coefficients", "record_truth"]
 
 #: Thesis/probe coefficients perturbed in the truth model.
 PERTURBED = ("k_c", "b_c", "k_imp", "b_imp", "mu_s", "mu_k")
@@ -464,17 +464,89 @@ def synthesize(out_dir, effect: str = "none", amplitude=None, seed: int = 0,
     return truth
 
 
+def record_truth(params, drive, t_end: float, sensor, path, *, seed: int, stream: int, dt: float,
+                 save_dt: float, final=None):
+    """Run the truth on one wheel-speed profile and log it as the rig would (one CSV).
+
+    Parameters
+    ----------
+    params : ParameterSet
+        The truth's parameters, its load (``m_b``) set.
+    drive : szdyn.drive profile
+        Wheel (motor, with ``drive_mode`` 2) speed; its largest ``|speed|`` bounds the checks.
+    t_end : float
+        Duration (s).
+    sensor : SensorModel
+    path : Path
+        The CSV to write; its name is the recording's.
+    seed, stream : int
+        The initial wheel phase (``U(0, pitch)`` past the default offset) and the sensor's noise
+        come from ``default_rng([seed, _S_PHASE + stream])`` and ``[seed, _S_SENSOR + stream]``:
+        a recording of its own needs a stream of its own.
+    dt, save_dt : float
+        RK4 step and output step (s).
+    final : path-like, optional
+        Directory named in error messages (default: ``path``'s).
+
+    Returns
+    -------
+    q_w0 : float
+        Initial wheel angle (rad).
+    rec : Recording
+        As written.
+    outputs : dict
+        The run's outputs (``t``, ``q_w``, ``q_b``, ``u_b``, ...).
+    """
+    from szdyn.sensors import apply_sensor, motor_torque, write_recording
+    from szdyn.simulate import simulate
+
+    path = Path(path)
+    fname, final = path.name, (path.parent if final is None else final)
+    load = params["m_b"]
+    n_circles = params.n_circles
+    pitch = 2 * math.pi / n_circles
+    q_w0 = params.default_wheel_offset() + float(np.random.default_rng([seed, _S_PHASE + stream]).uniform(0, pitch))
+    try:
+        run = simulate(params, drive, t_end, method="rk4", dt=dt, save_dt=save_dt,
+                       x0=params.initial_state(q_w0))
+    except SimulationError as exc:
+        raise SimulationError(f"truth of {fname} failed: {exc} (try a smaller dt than "
+                              f"{dt:g} s, or check the load {load:g} kg); nothing was "
+                              f"written to {final}", t=exc.t, variable=exc.variable) from exc
+    o = run.outputs
+    x = run.trajectory.x
+    n = n_circles + 2
+    w_max = float(np.abs(drive.knots()[1]).max())
+    if params["drive_mode"] == 2 and not np.abs(x[:, n]).max() <= 10 * w_max + 10:
+        raise SimulationError(
+            f"truth of {fname} is unphysical: the wheel behind the compliant drive reaches "
+            f"{np.abs(x[:, n]).max():.3g} rad/s for a motor at {w_max:.3g} rad/s "
+            f"(k_drive {params['k_drive']:.3g} N m/rad, c_drive {params['c_drive']:.3g} "
+            f"N m s/rad); check drive_mode 2 in the model", t=None, variable="u_w")
+    if not np.abs(o["u_b"]).max() <= 10 * w_max + 10:
+        raise SimulationError(f"truth of {fname} is unphysical: band speed reaches "
+                              f"{np.abs(o['u_b']).max():.3g} rad/s (try a smaller dt, or "
+                              f"check the load {load:g} kg); nothing was written to "
+                              f"{final}", t=None, variable="u_b")
+    # motor-side encoder: with the compliant drive, the prescribed motor angle
+    q_enc = drive.evaluate(o["t"], angle0=float(x[0, 0]))[0] if params["drive_mode"] == 2 else o["q_w"]
+    torque = motor_torque(run)
+    cond = {"load_kg": load, "n_circles": n_circles}
+    rec = apply_sensor(o["t"], q_enc, o["q_b"], sensor, np.random.default_rng([seed, _S_SENSOR + stream]),
+                       omega_ref=lambda tt, d=drive: d.evaluate(tt)[1], motor_torque=torque,
+                       name=fname, conditions=cond)
+    write_recording(path, rec)
+    return q_w0, rec, o
+
+
 def _synthesize_into(out, final, effect, amplitude, A, seed, loads, ramps, perturb, n_circles,
                      dt, save_dt, base, coeffs, factors, model_changes, sensor_changes, sensor,
                      verbose) -> dict:
     """The simulations and writes of :func:`synthesize`, into ``out`` (its staging directory;
     ``final`` is only named in messages)."""
     from szdyn.defaults import default_parameters
-    from szdyn.sensors import apply_sensor, motor_torque, write_recording
-    from szdyn.simulate import simulate
 
     held = set(_heldout(loads, ramps, seed))
-    compliant = base["drive_mode"] == 2
     _say(verbose, f"effect {effect} (amplitude {A:g}), seed {seed}, N_c {n_circles}, "
                   f"{len(loads)} loads x {len(ramps)} ramps, rk4 dt {dt:g} s -> {final}")
     recs = []
@@ -486,39 +558,8 @@ def _synthesize_into(out, final, effect, amplitude, A, seed, loads, ramps, pertu
             k = i * len(ramps) + j
             fname = f"load{_fmt_load(load)}kg_{ramp.name}.csv"
             t0 = time.perf_counter()
-            drive = ramp.drive()
-            pitch = 2 * math.pi / n_circles
-            q_w0 = params.default_wheel_offset() + float(np.random.default_rng([seed, _S_PHASE + k]).uniform(0, pitch))
-            try:
-                run = simulate(params, drive, ramp.t_end, method="rk4", dt=dt, save_dt=save_dt,
-                               x0=params.initial_state(q_w0))
-            except SimulationError as exc:
-                raise SimulationError(f"truth of {fname} failed: {exc} (try a smaller dt than "
-                                      f"{dt:g} s, or check the load {load:g} kg); nothing was "
-                                      f"written to {final}", t=exc.t, variable=exc.variable) from exc
-            o = run.outputs
-            x = run.trajectory.x
-            n = n_circles + 2
-            w_max = abs(ramp.omega_hold)
-            if compliant and not np.abs(x[:, n]).max() <= 10 * w_max + 10:
-                raise SimulationError(
-                    f"truth of {fname} is unphysical: the wheel behind the compliant drive reaches "
-                    f"{np.abs(x[:, n]).max():.3g} rad/s for a motor at {w_max:.3g} rad/s "
-                    f"(k_drive {params['k_drive']:.3g} N m/rad, c_drive {params['c_drive']:.3g} "
-                    f"N m s/rad); check drive_mode 2 in the model", t=None, variable="u_w")
-            if not np.abs(o["u_b"]).max() <= 10 * w_max + 10:
-                raise SimulationError(f"truth of {fname} is unphysical: band speed reaches "
-                                      f"{np.abs(o['u_b']).max():.3g} rad/s (try a smaller dt, or "
-                                      f"check the load {load:g} kg); nothing was written to "
-                                      f"{final}", t=None, variable="u_b")
-            # motor-side encoder: with the compliant drive, the prescribed motor angle
-            q_enc = drive.evaluate(o["t"], angle0=float(x[0, 0]))[0] if compliant else o["q_w"]
-            torque = motor_torque(run)
-            cond = {"load_kg": load, "n_circles": n_circles}
-            rec = apply_sensor(o["t"], q_enc, o["q_b"], sensor, np.random.default_rng([seed, _S_SENSOR + k]),
-                               omega_ref=lambda tt, d=drive: d.evaluate(tt)[1], motor_torque=torque,
-                               name=fname, conditions=cond)
-            write_recording(out / fname, rec)
+            q_w0, rec, o = record_truth(params, ramp.drive(), ramp.t_end, sensor, out / fname, seed=seed,
+                                        stream=k, dt=dt, save_dt=save_dt, final=final)
             dq_w, dq_b = o["q_w"][-1] - o["q_w"][0], o["q_b"][-1] - o["q_b"][0]
             slip = (dq_w - dq_b) / dq_w if dq_w != 0 else 0.0
             recs.append({"file": fname, "load_kg": load, "ramp": ramp.name,
@@ -529,7 +570,7 @@ def _synthesize_into(out, final, effect, amplitude, A, seed, loads, ramps, pertu
             _say(verbose, f"[{k + 1}/{n_tot}] {fname}: {ramp.t_end:g} s simulated in "
                           f"{time.perf_counter() - t0:.1f} s, {rec.t.size} rows, "
                           f"band {o['q_b'][-1]:.2f} rad vs wheel {o['q_w'][-1]:.2f} rad")
-            del run, o, x
+            del o
 
     lines = ["# Synthetic Spiral Zipper recordings (python -m szdyn.run synth).",
              "# truth.json beside this file is the hidden answer for scoring only;",

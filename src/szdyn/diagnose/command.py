@@ -89,6 +89,11 @@ def _build_parser():
                     "the same command, with the same or other options)")
     ap.add_argument("--no-checkpoint", action="store_true",
                     help="do not save model runs to DIR/checkpoint (an interrupted diagnosis then starts afresh)")
+    ap.add_argument("--no-next-recording", action="store_true",
+                    help="do not rank wheel-speed protocols for the recording that would tell the answer from "
+                    "its refitted rivals (by default, where a rival explains a quarter of the mismatch or more, "
+                    "each contender is run on six protocols at the lightest and heaviest load: report.md "
+                    "'The next recording to take', next_recording.png)")
     ap.add_argument("--workers", type=int, help="processes for model runs (default: CPU count)")
     ap.add_argument("--quiet", action="store_true", help="no progress on stderr")
     return ap
@@ -193,8 +198,17 @@ def diagnose_command(argv) -> int:
                   second_look=args.second_look, staged=not args.no_staged,
                   heavy_look=not args.no_heavy_look, checkpoint=checkpoint,
                   workers=args.workers, log=log, progress=progress)
+    nxt = None
     try:
         d.fit(recs)
+        if not args.no_next_recording:
+            from .design import NextRecording
+
+            try:
+                nxt = NextRecording(workers=args.workers, log=log).fit(d)
+            except Exception as exc:    # advice only: it must not cost the diagnosis's results
+                print(f"diagnose: the next recording was not ranked ({type(exc).__name__}: {exc}); "
+                      "the diagnosis is written without it", file=sys.stderr, flush=True)
     except (KeyboardInterrupt, SystemError) as exc:
         if not interrupted(exc):
             raise
@@ -203,7 +217,7 @@ def diagnose_command(argv) -> int:
             print(f"diagnose interrupted: the model runs {upto} are saved in {checkpoint.directory}; "
                   "re-run the same command to resume", file=sys.stderr, flush=True)
         raise KeyboardInterrupt from None
-    js = write_report(d, args.out)
+    js = write_report(d, args.out, next_recording=nxt)
     if checkpoint is not None and not args.keep_runs:
         checkpoint.clear()
     sel = ", ".join(js["selected"]) or d.verdict_

@@ -31,7 +31,7 @@ __all__ = ["OUTPUT_FILES", "write_report", "to_json", "updated_parameters"]
 
 #: Every file :func:`write_report` may write; one a run does not write is removed from ``out``.
 OUTPUT_FILES = ("params.json", "report.md", "diagnosis.json", "residual_time.png", "residual_features.png",
-                "candidates.png", "heldout_fit.png", "torque_fit.png")
+                "candidates.png", "heldout_fit.png", "torque_fit.png", "next_recording.png")
 
 COMPARED = (f"smoothed band speed omega_b (Savitzky-Golay derivative of theta_b, degree 2, window "
             f"{WINDOW_S:g} s) every {FEATURE_DT:g} s, measured minus model, with the model driven by "
@@ -840,16 +840,27 @@ def _fit_panels(plt, d, idx, measured, before, after, label, ylabel, height, pat
     save_png(fig, path)
 
 
-def write_report(d, out) -> dict:
-    """Write every output file of a fitted diagnosis into ``out``; return the JSON dict."""
+def write_report(d, out, next_recording=None) -> dict:
+    """Write every output file of a fitted diagnosis into ``out``; return the JSON dict.
+
+    ``next_recording``: a fitted :class:`~.design.NextRecording` (its section, its plot
+    ``next_recording.png`` and ``diagnosis.json``'s ``next_recording``), or None (then null).
+    """
     js = _to_json(d)
+    js["next_recording"] = None if next_recording is None else next_recording.to_dict()
     # staged, then moved in together: an interruption part-way leaves the previous run's set
     # whole (a new params.json beside an old report would be taken for this run's answer)
     # torque_fit.png is written only with a measured current: an earlier run's must not stay
     with staged_output(out, last=("diagnosis.json",), owns=OUTPUT_FILES) as stage:
         updated_parameters(d).to_json(stage / "params.json")
         _plots(d, stage)
-        atomic_write_text(stage / "report.md", _report_md(d, js))
+        md = _report_md(d, js)
+        if next_recording is not None:
+            # before the units and the cost, after the fit it would decide between
+            head, sep, tail = md.partition("\n## Units\n")
+            md = head + "\n" + "\n".join(next_recording.to_markdown()) + sep + tail
+            next_recording.plot(stage / "next_recording.png")
+        atomic_write_text(stage / "report.md", md)
         js = _clean(js)
         write_json(stage / "diagnosis.json", js)
     return js
