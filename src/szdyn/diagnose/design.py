@@ -234,18 +234,18 @@ class NextRecording:
         self.log(f"next recording: {len(self.protocols)} protocols x {len(self.loads_)} loads for "
                  f"{', '.join(self.contenders_)}")
         workers = self.workers if self.workers is not None else getattr(d, "workers", None)
-        # the recordings already taken, from the default wheel phase like the protocols
-        with FeatureModel(recs, workers=workers) as fm:
-            sp = fm.speeds(points, range(len(recs)))
-            self.n_runs_ += fm.n_runs_
-        for i, j in pairs:
-            diff = np.concatenate([a - b for a, b in zip(sp[i], sp[j])])
-            self.on_recordings_[_pair_key(self.contenders_[i], self.contenders_[j])] = rms(diff) / self.floor_
         precs = self._protocol_recordings(recs)
-        with FeatureModel(precs, workers=workers) as fm:
-            sp = fm.speeds(points, range(len(precs)))
-            self.n_runs_ += fm.n_runs_
-            failed = fm.n_failed_
+        # one batch on one pool: the recordings already taken (from the default wheel phase, like
+        # the protocols) and the protocols
+        n = len(recs)
+        with FeatureModel(list(recs) + precs, workers=workers) as fm:
+            both = fm.speeds(points, range(n + len(precs)))
+            self.n_runs_ = fm.n_runs_
+        for i, j in pairs:
+            diff = np.concatenate([a - b for a, b in zip(both[i][:n], both[j][:n])])
+            self.on_recordings_[_pair_key(self.contenders_[i], self.contenders_[j])] = rms(diff) / self.floor_
+        sp = [row[n:] for row in both]
+        failed = sum(not np.any(v[k]) for v in sp for k in range(len(precs)))   # a failed run is all zeros
         rows = []
         for k, pr in enumerate(precs):
             proto = self.protocols[k // len(self.loads_)]
@@ -265,7 +265,7 @@ class NextRecording:
         rows.sort(key=lambda r: (r["breakaway"], -r["min_separation"] if math.isfinite(r["min_separation"])
                                  else math.inf))
         if failed:
-            self.log(f"next recording: {failed} model run(s) failed; their rows are NaN")
+            self.log(f"next recording: {failed} protocol run(s) failed; their rows are NaN")
         best = rows[0]
         k = best.pop("_k")
         for r in rows[1:]:
