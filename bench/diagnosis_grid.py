@@ -26,6 +26,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "src"))
 
 from szdyn.io import atomic_write_text, write_json  # noqa: E402
+from szdyn.diagnose.design import MIN_SEPARATION  # noqa: E402
 from szdyn.synth import EFFECTS  # noqa: E402
 from szdyn.diagnose.candidates import CANDIDATES, primary_std  # noqa: E402
 
@@ -78,6 +79,15 @@ def run_case(work: Path, effect: str, seed: int, diag_args, current: float | Non
            "heldout_before": d["fit"]["before"]["heldout_rmse"],
            "heldout_after": d["fit"]["after"]["heldout_rmse"],
            "seconds": float((case / "seconds.txt").read_text()) if (case / "seconds.txt").is_file() else None}
+    nr = d.get("next_recording")
+    if nr is not None:
+        # the next-recording step (szdyn.diagnose.design): whom it would tell apart, and with what;
+        # a miss it can decide is one whose concealed effect is among the contenders
+        rec = nr.get("recommended")
+        res["next_contenders"] = nr.get("contenders") or []
+        res["next_protocol"] = f"{rec['protocol']} at {rec['load_kg']:g} kg" if rec else None
+        res["next_separation"] = rec["min_separation"] if rec else None
+        res["next_sufficient"] = bool(rec and rec.get("sufficient"))
     if res["heldout_before"] and res["heldout_after"]:
         res["heldout_ratio"] = res["heldout_before"] / res["heldout_after"]
     if res["heldout_before"] and d.get("noise_floor"):
@@ -111,6 +121,31 @@ def run_case(work: Path, effect: str, seed: int, diag_args, current: float | Non
 
 def _fmt(x, f=".3g"):
     return "-" if x is None else format(x, f)
+
+
+def next_recording_rows(results) -> list[str]:
+    """Summary rows for the next-recording step, when the diagnoses ran it (none before 3fc9059)."""
+    ran = [r for r in results if "next_contenders" in r]
+    if not ran:
+        return []
+    eff = [r for r in ran if r["effect"] != "none"]
+    miss = [r for r in eff if not r["correct"]]
+    asked = [r for r in ran if r["next_sufficient"]]
+    return [f"| next recording asked for (sufficient: contenders >= {MIN_SEPARATION:g} floors apart on it, no break-away) | {len(asked)}/{len(ran)} cases | |",
+            f"| ... misses whose concealed effect is a contender (the asked-for recording could decide) | "
+            f"{sum(r['effect'] in r['next_contenders'] for r in miss)}/{len(miss)} | |",
+            f"| ... null cases where one was asked for | {sum(r['next_sufficient'] for r in ran if r['effect'] == 'none')}"
+            f"/{len(ran) - len(eff)} | 0 |"]
+
+
+def _next_cell(r) -> str:
+    if "next_contenders" not in r:
+        return "-"
+    if r["next_protocol"] is None:
+        return "not ranked"
+    who = " vs ".join(r["next_contenders"])
+    return (f"{r['next_protocol']}, {r['next_separation']:.1f} floors ({who})"
+            + ("" if r["next_sufficient"] else ", not sufficient"))
 
 
 def write_md(results, path: Path, args):
@@ -156,15 +191,16 @@ def write_md(results, path: Path, args):
          f"| effect-parameter error in its reported std (correctly named) | median {_fmt(_median(zs), '.1f')}, "
          f"{sum(z <= 2 for z in zs)}/{len(zs)} within 2 std | (honest std: most within 2) |",
          f"| wall time per diagnosis (6 recordings, 2 cores) | median {_fmt(_median(secs), '.0f')} s | |",
+         *next_recording_rows(results),
          "", "## Cases", "",
-         "| effect | seed | amplitude | selected | correct | parameter truth | fitted | error | error of parameter / mu_k | error/std | held-out before -> after (rad/s) | ratio | before / floor | s |",
-         "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+         "| effect | seed | amplitude | selected | correct | parameter truth | fitted | error | error of parameter / mu_k | error/std | held-out before -> after (rad/s) | ratio | before / floor | s | next recording |",
+         "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in results:
         L.append(f"| {r['effect']} | {r['seed']} | {_fmt(r['amplitude'])} | {', '.join(r['selected']) or r['verdict']} | "
                  f"{'yes' if r['correct'] else '**no**'} | {_fmt(r.get('truth_param'))} | {_fmt(r.get('fitted_param'))} | "
                  f"{_fmt(r.get('param_error'), '.1%')} | {_fmt(r.get('param_error_per_mu_k'), '.1%')} | {_fmt(r.get('param_z'), '.1f')} | {_fmt(r['heldout_before'], '.4f')} -> {_fmt(r['heldout_after'], '.4f')} | "
                  f"{_fmt(r.get('heldout_ratio'), '.1f')} | {_fmt(r.get('heldout_over_floor'), '.1f')} | "
-                 f"{_fmt(r.get('seconds'), '.0f')} |")
+                 f"{_fmt(r.get('seconds'), '.0f')} | {_next_cell(r)} |")
     raw = args.json.resolve()
     raw = raw.relative_to(ROOT) if raw.is_relative_to(ROOT) else raw
     L += ["", "For a missed case, \"fitted\" and \"error\" are those of the concealed effect's refit when "
