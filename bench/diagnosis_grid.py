@@ -132,8 +132,8 @@ def next_recording_rows(results) -> list[str]:
     miss = [r for r in eff if not r["correct"]]
     asked = [r for r in ran if r["next_sufficient"]]
     return [f"| next recording asked for (sufficient: contenders >= {MIN_SEPARATION:g} floors apart on it, no break-away) | {len(asked)}/{len(ran)} cases | |",
-            f"| ... misses whose concealed effect is a contender (the asked-for recording could decide) | "
-            f"{sum(r['effect'] in r['next_contenders'] for r in miss)}/{len(miss)} | |",
+            f"| ... misses for which one is asked for with the concealed effect among the contenders (it could decide them) | "
+            f"{sum(r['next_sufficient'] and r['effect'] in r['next_contenders'] for r in miss)}/{len(miss)} | |",
             f"| ... null cases where one was asked for | {sum(r['next_sufficient'] for r in ran if r['effect'] == 'none')}"
             f"/{len(ran) - len(eff)} | 0 |"]
 

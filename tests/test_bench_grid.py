@@ -41,13 +41,14 @@ def test_the_grid_scores_what_the_next_recording_would_decide(tmp_path):
     miss = grid.run_case(tmp_path, "slider_stribeck", 3, [])
     assert not miss["correct"] and miss["next_protocol"] == "stop_and_restart at 1 kg"
     assert miss["next_sufficient"] and miss["next_separation"] == 10.1
-    other = {**miss, "effect": "load_lift", "next_sufficient": False, "next_separation": 1.2}
-    out = grid.next_recording_rows(rows + [miss, other])
-    assert out[0].startswith("| next recording asked for") and "| 1/3 cases |" in out[0]
-    assert "| 1/2 |" in out[1]                        # stribeck among the contenders, load_lift not
+    other = {**miss, "effect": "load_lift"}          # asked for, but between two other effects
+    close = {**miss, "next_sufficient": False, "next_separation": 1.2}   # the truth's, not asked for
+    out = grid.next_recording_rows(rows + [miss, other, close])
+    assert out[0].startswith("| next recording asked for") and "| 2/4 cases |" in out[0]
+    assert "| 1/3 |" in out[1]                        # only the first miss could be decided
     assert "| 0/1 | 0 |" in out[2]                    # the null that ran the step asked for nothing
     assert grid._next_cell(miss) == ("stop_and_restart at 1 kg, 10.1 floors "
                                      "(friction_drift vs slider_stribeck)")
-    assert grid._next_cell(other).endswith(", not sufficient")
+    assert grid._next_cell(close).endswith(", not sufficient")
     assert grid._next_cell(rows[0]) == "not ranked" and grid._next_cell(rows[1]) == "-"
     assert grid.next_recording_rows(rows[1:]) == []
