@@ -35,7 +35,7 @@ sys.path.insert(0, str(ROOT / "bench"))
 from szdyn.io import atomic_write_text, write_json  # noqa: E402
 from szdyn.params import ParameterSet  # noqa: E402
 from szdyn.sensors import SensorModel  # noqa: E402
-from szdyn.synth import record_truth  # noqa: E402
+from szdyn.synth import _fmt_load, record_truth  # noqa: E402
 from szdyn.diagnose.design import PROTOCOLS  # noqa: E402
 from diagnosis_grid import param_error, truth_primary  # noqa: E402
 
@@ -74,8 +74,7 @@ def add_recording(case: Path, diagnosis: dict, work: Path, protocol: str | None 
     shutil.copytree(case / "data", data, ignore=shutil.ignore_patterns("truth.json"))
     params = ParameterSet.from_dict(truth["truth_parameters"]).replace(m_b=rec["load_kg"])
     sensor = SensorModel(**truth["sensor"])
-    name = f"next_{proto.id}_load{rec['load_kg']:g}kg.csv"
-    name = name[:-4].replace(".", "p") + ".csv"    # 0.5 kg -> load0p5kg, as the generator names
+    name = f"next_{proto.id}_load{_fmt_load(rec['load_kg'])}kg.csv"    # 0.5 kg -> load0p5kg, as the generator
     q_w0, r, _ = record_truth(params, proto.drive(nr["scale_speed"]), proto.duration, sensor, data / name,
                               seed=int(truth["seed"]), stream=STREAM, dt=truth["integrator"]["dt"],
                               save_dt=truth["integrator"]["save_dt"])

@@ -167,3 +167,26 @@ def test_the_section_the_plot_and_the_json_of_a_ranking(recs, tmp_path):
     nr.recommended_["sufficient"] = False
     md = "\n".join(nr.to_markdown())
     assert "**Record next:" not in md and "No protocol of the library separates" in md
+
+
+def test_a_failed_protocol_run_gives_nan_separations_and_no_band_held_at_rest(recs, monkeypatch):
+    """A run that fails comes back all zeros (``FeatureModel``): its pairs are NaN, its row ranks
+    after the finite ones, and its zeros are not read as a band held at rest."""
+    import szdyn.diagnose.design as design
+
+    class FailingLast(design.FeatureModel):
+        def speeds(self, points, idx):
+            out = super().speeds(points, idx)
+            out[-1][-1] = np.zeros_like(out[-1][-1])    # the last contender on the last protocol row
+            return out
+
+    monkeypatch.setattr(design, "FeatureModel", FailingLast)
+    s = _start(recs)
+    d = _diagnosis(recs, _fit(Hypothesis(s)), {"encoder_scale": (_fit(Hypothesis(s, CANDIDATES["encoder_scale"]),
+                                                                        encoder_scale=0.05), 0.8)},
+                   verdict="unexplained", selected=())
+    nr = NextRecording(SHORT[2:]).fit(d)                 # the fast start at 0.5 and 1 kg
+    failed = nr.table_[-1]
+    assert failed["load_kg"] == 1.0 and math.isnan(failed["min_separation"])
+    assert failed["held_at_rest_s"] == 0.0 and not failed["breakaway"]
+    assert math.isfinite(nr.table_[0]["min_separation"]) and nr.recommended_["load_kg"] == 0.5

@@ -245,32 +245,32 @@ class NextRecording:
             diff = np.concatenate([a - b for a, b in zip(both[i][:n], both[j][:n])])
             self.on_recordings_[_pair_key(self.contenders_[i], self.contenders_[j])] = rms(diff) / self.floor_
         sp = [row[n:] for row in both]
-        failed = sum(not np.any(v[k]) for v in sp for k in range(len(precs)))   # a failed run is all zeros
+        ran = [[bool(np.any(v[k])) for k in range(len(precs))] for v in sp]   # a failed run is all zeros
+        failed = sum(not x for r in ran for x in r)
         rows = []
         for k, pr in enumerate(precs):
             proto = self.protocols[k // len(self.loads_)]
-            sep = {}
-            for i, j in pairs:
-                ok = np.any(sp[i][k]) and np.any(sp[j][k])   # a failed run is all zeros
-                sep[_pair_key(self.contenders_[i], self.contenders_[j])] = \
-                    rms(sp[i][k] - sp[j][k]) / self.floor_ if ok else math.nan
+            sep = {_pair_key(self.contenders_[i], self.contenders_[j]):
+                   rms(sp[i][k] - sp[j][k]) / self.floor_ if ran[i][k] and ran[j][k] else math.nan
+                   for i, j in pairs}
             vals = [v for v in sep.values() if math.isfinite(v)]
             moving = np.abs(pr.omega_w) > HELD_WHEEL * self.scale_
-            held = max(int(np.sum(moving & (np.abs(v[k]) < HELD_SHARE * np.abs(pr.omega_w)))) for v in sp)
+            # a failed run's zeros are no band held at rest
+            held = max((int(np.sum(moving & (np.abs(v[k]) < HELD_SHARE * np.abs(pr.omega_w))))
+                        for i, v in enumerate(sp) if ran[i][k]), default=0)
             share = held / max(int(np.sum(moving)), 1)
             rows.append({"protocol": proto.id, "load_kg": pr.load_kg, "separation": sep,
                          "min_separation": min(vals) if len(vals) == len(sep) else math.nan,
                          "held_at_rest_s": held * FEATURE_DT, "held_share": share,
-                         "breakaway": share >= BREAKAWAY_SHARE, "_k": k})
-        rows.sort(key=lambda r: (r["breakaway"], -r["min_separation"] if math.isfinite(r["min_separation"])
-                                 else math.inf))
+                         "breakaway": share >= BREAKAWAY_SHARE})
+        order = sorted(range(len(rows)), key=lambda k: (
+            rows[k]["breakaway"],
+            -rows[k]["min_separation"] if math.isfinite(rows[k]["min_separation"]) else math.inf))
         if failed:
             self.log(f"next recording: {failed} protocol run(s) failed; their rows are NaN")
-        best = rows[0]
-        k = best.pop("_k")
-        for r in rows[1:]:
-            r.pop("_k")
-        self.table_ = rows
+        self.table_ = [rows[k] for k in order]
+        k = order[0]
+        best = rows[k]
         if math.isfinite(best["min_separation"]):
             proto = self.protocols[k // len(self.loads_)]
             self.recommended_ = {**best, "description": proto.description, "reveals": proto.reveals,
