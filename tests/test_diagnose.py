@@ -1172,10 +1172,13 @@ def test_diagnosis_json_schema(viscous):
     # a torque-like effect parameter is also given relative to the refit's kinetic friction
     assert sel["primary"]["per_mu_k"] == pytest.approx(sel["primary"]["value"] / d["final"]["values"]["mu_k"])
     assert all("per_mu_k" not in e.get("primary", {}) for e in d["effects"] if e["id"] == "encoder_scale")
-    # the floor is assembled from the fit recordings' own parts (RMS of sensor, median of bumps)
+    # the floor is assembled from the fit recordings' own parts (RMS of sensor, median of bumps
+    # with each load counting once; two per load here, so the plain median)
     per = d["noise_floor_per_recording"]
     assert set(per) == {r["recording"] for r in d["location"]["recordings"]}
     fit = [v for k, v in per.items() if k not in d["split"]["heldout"]]
+    fit_loads = [r["load_kg"] for r in d["recordings"] if r["role"] == "fit"]
+    assert sorted(fit_loads) == [0.5, 0.5, 1.0, 1.0]
     s = math.sqrt(np.mean([v["sensor"] ** 2 for v in fit]))
     assert d["noise_floor"] == pytest.approx(math.hypot(s, float(np.median([v["bump"] for v in fit]))))
     own = [math.hypot(v["sensor"], v["bump"]) for v in per.values()]

@@ -60,7 +60,7 @@ from .engine import FeatureModel, rms
 from .fit import Hypothesis, fit_hypothesis, gauss_newton_step, jacobian, linear_step
 from .force_scale import force_scale_secant, heldout_along_force_scale
 from .locate import follows, locate
-from .noise import bump_noise, sensor_noise, torque_bump_noise, torque_sensor_noise
+from .noise import bump_noise, load_median, sensor_noise, torque_bump_noise, torque_sensor_noise
 from .phase import PHASE_GATE, estimate_phases, identified_phases
 from .heavy import heaviest_load, other_loads
 from .selection import SelectionRule, close_rivals, decide, nominate, rivals, screen, settled
@@ -338,7 +338,8 @@ class Diagnosis:
         ``sensor`` and ``bump`` parts (rad/s).
     floor_per_recording_ : dict
         Per recording, its own ``sensor`` and ``bump`` parts (rad/s); the floor takes the RMS of
-        the first and the median of the second over the fit recordings.
+        the first and the median of the second over the fit recordings, each load counting
+        once (:func:`.noise.load_median`).
     phases_ : dict
         Per recording (name), its estimated initial wheel phase
         (:meth:`.phase.PhaseEstimate.to_dict`) at the first calibration; empty when not
@@ -1173,9 +1174,10 @@ class Diagnosis:
         """Noise floor of the smoothed motor torque, and its residual weight on ``model``.
 
         The floor (N m) is made like the speed floor (RMS of the fit recordings' sensor parts,
-        median of their bump parts, in quadrature); every recording with a measured torque gets
-        the weight ``floor_ / torque floor`` (rad/s per N m). Used only when a fit recording has
-        a measured torque. Returns None when no recording has one.
+        median of their bump parts with each load counting once, in quadrature); every
+        recording with a measured torque gets the weight ``floor_ / torque floor`` (rad/s per
+        N m). Used only when a fit recording has a measured torque. Returns None when no
+        recording has one.
         """
         tq_idx = [i for i in all_idx if recs[i].tau is not None]
         if not tq_idx:
@@ -1189,7 +1191,7 @@ class Diagnosis:
         sens = {i: torque_sensor_noise(recs[i]) for i in tq_idx}
         bump = {i: torque_bump_noise(model, i, base_mc) for i in tq_idx}
         s_sens = math.sqrt(np.mean([sens[i] ** 2 for i in fit_tq]))
-        s_bump = float(np.median([bump[i] for i in fit_tq]))
+        s_bump = load_median([bump[i] for i in fit_tq], [recs[i].load_kg for i in fit_tq])
         # (never 0: a noise-free synthetic torque would divide by it)
         floor = max(math.hypot(s_sens, s_bump), 1e-12)
         w = self.floor_ / floor
@@ -1207,9 +1209,12 @@ class Diagnosis:
         held_idx = [i for i in all_idx if i not in fit_idx]
         sens = [sensor_noise(recs[i]) for i in fit_idx]
         bump = [bump_noise(model, i, base_mc) for i in fit_idx]
+        # (the sensor part is the encoders' and hardly depends on the load: a plain RMS)
         s_sens = math.sqrt(np.mean(np.square(sens)))
-        # median: one recording whose start flips between stick and slip must not inflate the floor
-        s_bump = float(np.median(bump))
+        # median: one recording whose start flips between stick and slip must not inflate the
+        # floor; each load counts once, since the bumps depend on the load and an extra
+        # recording at one load must not move the floor to that load's value (.noise.load_median)
+        s_bump = load_median(bump, [recs[i].load_kg for i in fit_idx])
         self.floor_ = math.hypot(s_sens, s_bump)
         self.floor_parts_ = {"sensor": s_sens, "bump": s_bump}
         # held-out recordings' own floors too (they judge; the common floor is the fit ones')

@@ -17,10 +17,17 @@ reach; the diagnosis calls a mismatch significant only above it.
 
 The smoothed motor torque (recordings with a current column) has a floor of its own, in N m,
 made the same two ways (:func:`torque_sensor_noise`, :func:`torque_bump_noise`).
+
+The common floor takes the median of the fit recordings' bump parts with each load counting
+once (:func:`load_median`). The bumps depend on the load (on the benchmark's truths 0.5 kg
+gave 0.024-0.039 rad/s and 1 kg 0.001-0.005), so a plain median over recordings moved to the
+majority load's value as soon as one load had an extra recording.
 """
 from __future__ import annotations
 
 import math
+from collections import Counter
+from fractions import Fraction
 
 import numpy as np
 
@@ -28,7 +35,7 @@ from ..recordings import Recording, smoothed_current, speeds
 from .data import Prepared, WINDOW_S
 from .phase import PHASE_UNCERTAINTY
 
-__all__ = ["sensor_noise", "bump_noise", "torque_sensor_noise", "torque_bump_noise"]
+__all__ = ["sensor_noise", "bump_noise", "torque_sensor_noise", "torque_bump_noise", "load_median"]
 
 
 def _half_difference(p: Prepared, smoothed) -> float:
@@ -80,3 +87,42 @@ def torque_bump_noise(model, i: int, base_changes: dict) -> float:
     """Unreproducible part of the model's smoothed motor torque for recording ``i`` (N m): the
     same two runs as :func:`bump_noise` (cached)."""
     return _shifted_pair(model, i, base_changes, model.torques)
+
+
+def load_median(values, loads) -> float:
+    """Median of per-recording values in which each load counts once.
+
+    Each value is weighted by one over the number of values at its load, and the weighted
+    median is taken with the plain median's convention (where the cumulative weight reaches
+    exactly half, the mean of the two values either side). With the same number of values at
+    every load this is ``np.median(values)`` exactly; adding recordings at one load only moves
+    it within that load's share.
+
+    Parameters
+    ----------
+    values : sequence of float, shape (n,)
+        One value per recording (e.g. its impact-bump noise, rad/s).
+    loads : sequence of float, shape (n,)
+        Each recording's load (kg); NaN loads (not given) form one group.
+
+    Returns
+    -------
+    float
+    """
+    values = [float(v) for v in values]
+    if len(values) != len(loads) or not values:
+        raise ValueError(f"load_median needs one load per value and at least one value "
+                         f"(got {len(values)} values, {len(loads)} loads)")
+    keys = [float(x) if math.isfinite(x) else None for x in loads]
+    count = Counter(keys)
+    # exact weights: the tie at exactly half must be recognised as the plain median does
+    half = Fraction(len(count), 2)
+    order = sorted(range(len(values)), key=values.__getitem__)
+    cum = Fraction(0)
+    for pos, j in enumerate(order):
+        cum += Fraction(1, count[keys[j]])
+        if cum == half:
+            return (values[j] + values[order[pos + 1]]) / 2.0
+        if cum > half:
+            return values[j]
+    raise AssertionError("unreachable: the weights sum to the number of loads")

@@ -651,7 +651,7 @@ def _report_md(d, js) -> str:
           "Recordings: " + ", ".join(f"`{r.name}` ({r.role}, {r.load_kg:g} kg)" for r in d.recordings_) + ".", "",
           f"Noise floor {_f(d.floor_)} rad/s = sqrt(sensor {_f(d.floor_parts_['sensor'])}^2 + "
           f"impact bumps {_f(d.floor_parts_['bump'])}^2) (see `szdyn.diagnose.noise`): the RMS of the "
-          "fit recordings' sensor noise and the median of their bumps. Per recording (sensor, bumps, "
+          "fit recordings' sensor noise and the median of their bumps, each load counting once. Per recording (sensor, bumps, "
           "rad/s): " + "; ".join(f"`{k}` {_f(v['sensor'], '.3g')}, {_f(v['bump'], '.3g')}"
                                   for k, v in d.floor_per_recording_.items())
           + f"; their own floors differ {d.floor_spread_:.1f}x. " + (_WEIGHTED.format(
