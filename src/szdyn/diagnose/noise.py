@@ -20,7 +20,7 @@ made the same two ways (:func:`torque_sensor_noise`, :func:`torque_bump_noise`).
 
 The common floor takes the median of the fit recordings' bump parts with each load counting
 once (:func:`load_median`). The bumps depend on the load (on the benchmark's truths 0.5 kg
-gave 0.024-0.039 rad/s and 1 kg 0.001-0.005), so a plain median over recordings moved to the
+gave 0.013-0.039 rad/s and 1 kg 0.001-0.005), so a plain median over recordings moved to the
 majority load's value as soon as one load had an extra recording.
 """
 from __future__ import annotations
