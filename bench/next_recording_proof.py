@@ -2,7 +2,7 @@
 
 Usage::
 
-    python bench/next_recording_proof.py --case DIR --diagnosis OUT --work WORK [--diagnose-args "..."]
+    python bench/next_recording_proof.py --case DIR --diagnosis OUT --work WORK [--diagnose-args="..."]
 
 ``DIR`` holds synthetic recordings (``DIR/data/manifest.toml`` and their CSVs) and the truth
 that made them (``DIR/truth.json``, or ``DIR/data/truth.json``); ``OUT`` is a finished diagnosis
@@ -111,7 +111,9 @@ def main(argv=None) -> int:
     ap.add_argument("--case", type=Path, required=True)
     ap.add_argument("--diagnosis", type=Path, required=True, help="directory of a finished diagnosis of the case")
     ap.add_argument("--work", type=Path, required=True)
-    ap.add_argument("--diagnose-args", default="")
+    # (written --diagnose-args=--quiet: argparse reads a lone value starting with "-" as an option)
+    ap.add_argument("--diagnose-args", default="", metavar="ARGS",
+                    help='extra arguments for the diagnosis, one string, e.g. --diagnose-args="--quiet"')
     ap.add_argument("--protocol", help="record this row of the ranking instead of the recommended one")
     ap.add_argument("--load", type=float, help="with --protocol: its load (kg; default its best)")
     args = ap.parse_args(argv)
