@@ -70,3 +70,23 @@ def test_loads_not_given_form_one_group():
 def test_bad_input_is_a_clear_error(values, loads):
     with pytest.raises(ValueError, match="one load per value"):
         load_median(values, loads)
+
+
+def test_the_diagnosis_floor_counts_each_load_once(monkeypatch):
+    # the wiring in Diagnosis._noise_floor, with each recording's parts given (no model runs):
+    # seed 47's friction_asymmetry with the slow ramp added at 1 kg as a fifth fit recording
+    from types import SimpleNamespace
+
+    from szdyn.diagnose import diagnosis as dg
+
+    loads = [0.5, 0.5, 1.0, 1.0, 1.0, 0.5, 1.0]        # five fit, then two held out
+    bumps = [0.0318, 0.0312, 0.0018, 0.0023, 0.0024, 0.0291, 0.0027]
+    recs = [SimpleNamespace(name=f"r{i}", load_kg=x, sensor=0.005, bump=b)
+            for i, (x, b) in enumerate(zip(loads, bumps))]
+    monkeypatch.setattr(dg, "sensor_noise", lambda p: p.sensor)
+    monkeypatch.setattr(dg, "bump_noise", lambda model, i, mc: recs[i].bump)
+    d = dg.Diagnosis()
+    own = d._noise_floor(None, recs, [0, 1, 2, 3, 4], list(range(7)), {})
+    assert d.floor_parts_["bump"] == pytest.approx((0.0024 + 0.0312) / 2)    # plain median: 0.0024
+    assert d.floor_ == pytest.approx(math.hypot(0.005, (0.0024 + 0.0312) / 2))
+    assert own[5] == pytest.approx(math.hypot(0.005, 0.0291)) and set(own) == set(range(7))
