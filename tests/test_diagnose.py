@@ -1173,14 +1173,15 @@ def test_diagnosis_json_schema(viscous):
     assert sel["primary"]["per_mu_k"] == pytest.approx(sel["primary"]["value"] / d["final"]["values"]["mu_k"])
     assert all("per_mu_k" not in e.get("primary", {}) for e in d["effects"] if e["id"] == "encoder_scale")
     # the floor is assembled from the fit recordings' own parts (RMS of sensor, median of bumps
-    # with each load counting once; two per load here, so the plain median)
+    # with each load counting once: here one fit recording at 0.5 kg and two at 1 kg, so the
+    # plain median with the 0.5 kg one counted twice)
     per = d["noise_floor_per_recording"]
     assert set(per) == {r["recording"] for r in d["location"]["recordings"]}
-    fit = [v for k, v in per.items() if k not in d["split"]["heldout"]]
-    fit_loads = [r["load_kg"] for r in d["recordings"] if r["role"] == "fit"]
-    assert sorted(fit_loads) == [0.5, 0.5, 1.0, 1.0]
-    s = math.sqrt(np.mean([v["sensor"] ** 2 for v in fit]))
-    assert d["noise_floor"] == pytest.approx(math.hypot(s, float(np.median([v["bump"] for v in fit]))))
+    fit = {r["name"]: r["load_kg"] for r in d["recordings"] if r["role"] == "fit"}
+    assert sorted(fit.values()) == [0.5, 1.0, 1.0] and set(fit) == set(per) - set(d["split"]["heldout"])
+    s = math.sqrt(np.mean([per[k]["sensor"] ** 2 for k in fit]))
+    bumps = [per[k]["bump"] for k, x in fit.items() for _ in range(2 if x == 0.5 else 1)]
+    assert d["noise_floor"] == pytest.approx(math.hypot(s, float(np.median(bumps))))
     own = [math.hypot(v["sensor"], v["bump"]) for v in per.values()]
     assert d["weighting"]["spread"] == pytest.approx(max(own) / min(own))
     assert d["weights"] == {r["recording"]: 1.0 for r in d["location"]["recordings"]}   # unweighted
