@@ -14,7 +14,7 @@ __all__ = ["diagnose_command"]
 
 def _build_parser():
     from .candidates import CANDIDATES
-    from .diagnosis import FLOOR_SPREAD, SECOND_LOOK_STEPS, STAGED_RATIO
+    from .diagnosis import FLOOR_SPREAD, POLISH_PHASE_STEPS, SECOND_LOOK_STEPS, STAGED_RATIO
 
     ap = Parser("diagnose", prog="python -m szdyn.run diagnose",
                  description="Calibrate the model to recordings, locate the mismatch, name the missing "
@@ -59,6 +59,11 @@ def _build_parser():
                     "that pass again with this many phase-profiled steps (as --phase-steps) and answer with it; "
                     "a calibration stopped beyond the gate whose ablation's base fits within it gets the same, "
                     f"calibrated from that base (default {SECOND_LOOK_STEPS}; 0: off)")
+    ap.add_argument("--phase-polish", type=int, default=POLISH_PHASE_STEPS,
+                    help="when the named effect moves the wheel against the motor encoder (drive_compliance) "
+                    "and its refit took no phase-profiled step, at most this many such steps of it after the "
+                    "decision, since its value was fitted at wheel phases estimated without it; the answer "
+                    f"stands (default {POLISH_PHASE_STEPS}; 0: off)")
     ap.add_argument("--no-staged", action="store_true",
                     help="calibrate the base on all fit recordings at once only; by default, where that leaves a "
                     "mismatch, it is also calibrated on the heaviest load's fit recordings first and then on "
@@ -125,6 +130,8 @@ def diagnose_command(argv) -> int:
         raise UserInputError(f"diagnose: --phase-steps must be >= 0, got {args.phase_steps}")
     if args.second_look < 0:
         raise UserInputError(f"diagnose: --second-look must be >= 0, got {args.second_look}")
+    if args.phase_polish < 0:
+        raise UserInputError(f"diagnose: --phase-polish must be >= 0, got {args.phase_polish}")
     if args.workers is not None and args.workers < 1:
         raise UserInputError(f"diagnose: --workers must be >= 1, got {args.workers}")
     cands = None
@@ -195,7 +202,7 @@ def diagnose_command(argv) -> int:
                   polish_jac=args.polish_jac, rivals=args.rivals, exchange_split=not args.no_exchange_split,
                   weighting=args.weighting, unstall=args.unstall, fit_phase=not args.no_phase,
                   phase_steps=args.phase_steps, restart=args.restart,
-                  second_look=args.second_look, staged=not args.no_staged,
+                  second_look=args.second_look, phase_polish=args.phase_polish, staged=not args.no_staged,
                   heavy_look=not args.no_heavy_look, checkpoint=checkpoint,
                   workers=args.workers, log=log, progress=progress)
     nxt = None

@@ -59,6 +59,8 @@ UNITS = {"rmse": "rad/s", "heldout_rmse": "rad/s", "noise_floor": "rad/s", "t0":
          "std (effects)": "own units; calibrated_std, final.std and the selected effect's std come from the "
                           "Jacobian corrected along the force scale (see uncertainty), the other effects' "
                           "std are local (uncorrected)",
+         "polish": "values: the named effect's parameters in the units listed with them; rmse_fit: the fit "
+                   "recordings' RMSE before and after the phase-profiled steps (rad/s, weighted as the fit)",
          "k_c": "N*m/rad", "b_c": "N*m*s/rad", "k_imp": "N/m^n", "b_imp": "N*s/m^(n+1)", "mu_s": "1", "mu_k": "1"}
 
 
@@ -282,6 +284,7 @@ def _to_json(d) -> dict:
         "restart": d.restart_,
         "second_look": d.second_look_,
         "heavy_look": d.heavy_look_,
+        "polish": d.polish_,
         "not_identified": {k: d.recordings_[0].params[k] for k in FIXED_UNIDENTIFIED},
         "final": {"values": fin.values, "std": fin.std, "sensor": sensor},
         "uncertainty": {"calibrated": cal.extra.get("force_scale"), "final": fin.extra.get("force_scale")},
@@ -458,6 +461,25 @@ def _second_look_md(d) -> list:
             f"point judged with the phases estimated at it); this diagnosis is that pass. {cost}", ""]
 
 
+def _polish_md(d) -> list:
+    """Report paragraph on the named effect's phase-profiled polish (``polish_``), when tried."""
+    p = d.polish_
+    if not p:
+        return []
+    vals = ", ".join(f"{k} {_f(p['before']['values'][k], '.4g')}" + (
+        f" -> {_f(v, '.4g')}" if p["steps"] else "") + f" {p['units'][k]}" for k, v in p["after"]["values"].items())
+    head = (f"**Polished with its own wheel phases.** `{p['candidate']}` moves the wheel's angle against "
+            "the measured motor angle, and its refit was fitted at the fit recordings' wheel phases "
+            "estimated at the calibrated base, which lacks it (those phases take in part of the effect). ")
+    if p["steps"]:
+        return [head + f"{p['steps']} phase-profiled step(s), each trial point judged with the phases "
+                f"estimated at it, moved it: {vals}; fit RMSE {_f(p['before']['rmse_fit'])} -> "
+                f"{_f(p['after']['rmse_fit'])} rad/s. The answer is unchanged; the values, the updated "
+                "model and the after figures are the polished ones.", ""]
+    return [head + f"No phase-profiled step fitted clearly better ({vals}; fit RMSE "
+            f"{_f(p['before']['rmse_fit'])} rad/s): the values stand.", ""]
+
+
 def _heavy_look_md(d) -> list:
     """Report paragraph on the look at the heaviest load alone (``heavy_look_``), when it ran or
     could not."""
@@ -630,7 +652,7 @@ def _report_md(d, js) -> str:
               "estimate says (near the full-slip cliff: on szdyn's grid a 2 % change of mu_k "
               "decided between tracking and slipping on one such recording).", ""]
         L += _heldout_scale_md(d)
-    L += _split_md(d) + _restart_md(d) + _second_look_md(d) + _heavy_look_md(d)
+    L += _split_md(d) + _restart_md(d) + _second_look_md(d) + _heavy_look_md(d) + _polish_md(d)
     o = d.weighting_["other_pass"]
     if o is not None:
         said = (f"{o['verdict']}" + (f" ({', '.join(o['selected'])})" if o["selected"] else "")
