@@ -318,7 +318,8 @@ class Diagnosis:
         nothing there.
     phase_polish : int
         When the named effect's candidate has a phase ladder (the drive compliance, which moves
-        the wheel's angle against the measured motor angle) and its refit took no phase-profiled
+        the wheel's angle against the measured motor angle), the fit recordings' wheel phases
+        were estimated (``fit_phase``, within the phase gate) and its refit took no phase-profiled
         step, at most this many such steps of that refit after the decision
         (:meth:`_polish`; the ladder is tried in the first): the fit recordings' phases were
         estimated at the base, without the effect, and bias its value. The answer stands; the
@@ -533,8 +534,8 @@ class Diagnosis:
                  polish_jac: int | None = None, rivals: int = 2, exchange_split: bool = True,
                  weighting: str = "fallback", unstall: int = 2, fit_phase: bool = True,
                  phase_steps: int = 0, restart: bool = False, second_look: int = SECOND_LOOK_STEPS,
-                 phase_polish: int = POLISH_PHASE_STEPS, staged: bool = True, heavy_look: bool = True, checkpoint=None, workers: int | None = None,
-                 log=None, progress=None):
+                 phase_polish: int = POLISH_PHASE_STEPS, staged: bool = True, heavy_look: bool = True,
+                 checkpoint=None, workers: int | None = None, log=None, progress=None):
         self.candidates = candidates
         self.rule = rule or SelectionRule()
         self.shortlist = shortlist
