@@ -9,17 +9,14 @@ import dataclasses
 import math
 from types import SimpleNamespace
 
-import numpy as np
 import pytest
 
-from szdyn.diagnose.candidates import CANDIDATES
 from szdyn.diagnose.diagnosis import POLISH_PHASE_STEPS, Diagnosis
-from szdyn.diagnose.fit import FitResult, Hypothesis
 from szdyn.diagnose.phase import estimate_phases
 from szdyn.diagnose.report import _polish_md
 from szdyn.run import main as run_main
 
-from test_phase_step import C_TRUE, START, WindUp, _calibrated
+from test_phase_step import C_TRUE, WindUp, _rigid_refit
 
 C_NAMED = 0.2       # rad/(N m): the named value, fitted at the base's phases (truth C_TRUE = 0.35)
 
@@ -27,17 +24,7 @@ C_NAMED = 0.2       # rad/(N m): the named value, fitted at the base's phases (t
 def _named(model, cand="drive_compliance", value=C_NAMED, extra=None):
     """A named refit as the diagnosis leaves it: the phases estimated at the rigid calibration,
     the effect at ``value``, and a Jacobian that sees the effect's column flat."""
-    res0, _ = _calibrated(model, Hypothesis(START))
-    h = Hypothesis(START, CANDIDATES[cand])
-    x = h.coordinates({**h.values(np.concatenate([res0.x, h.x_start()[h.n_base:]])),
-                       CANDIDATES[cand].params[0].name: value})
-    r = model.residuals([h.point(x)], [0, 1])[0]
-    J = np.zeros((r.size, x.size))
-    J[:, :h.n_base] = res0.J
-    rss = float(r @ r)
-    return h, FitResult(hypothesis=h, x=x, values=h.values(x), std={}, corr=np.eye(x.size), rss_fit=rss,
-                        n_fit=r.size, rmse_fit=math.sqrt(rss / r.size), nfev=1, J=J, status="converged",
-                        extra={"njac": 5, **(extra or {})})
+    return _rigid_refit(model, cand, value=value, extra=extra)
 
 
 def test_the_polish_takes_a_named_compliance_to_the_truth():

@@ -157,19 +157,22 @@ class WindUp(BumpShift):
         return np.concatenate([BUMP * np.sin(math.pi * (q - ph) / PITCH), smooth])
 
 
-def _rigid_refit(model, cand):
+def _rigid_refit(model, cand, value=None, extra=None):
     """A candidate's refit as the diagnosis leaves it at a rigid calibration: the base's phases,
-    the effect off, and an effect column the Jacobian sees flat (the held phases hide it)."""
+    the effect off (or its first parameter at ``value``), and an effect column the Jacobian sees
+    flat (the held phases hide it)."""
     res0, est = _calibrated(model, Hypothesis(START))
     h = Hypothesis(START, CANDIDATES[cand])
     x = np.concatenate([res0.x, np.zeros(len(h.params) - h.n_base)])
+    if value is not None:
+        x = h.coordinates({**h.values(x), CANDIDATES[cand].params[0].name: value})
     r = model.residuals([h.point(x)], [0, 1])[0]
     J = np.zeros((r.size, x.size))
     J[:, :h.n_base] = res0.J
     rss = float(r @ r)
     return h, FitResult(hypothesis=h, x=x, values=h.values(x), std={}, corr=np.eye(x.size), rss_fit=rss,
                         n_fit=r.size, rmse_fit=math.sqrt(rss / r.size), nfev=1, J=J, status="converged",
-                        extra={"njac": 3})
+                        extra={"njac": 3, **(extra or {})})
 
 
 def test_a_phase_ladder_finds_a_compliance_the_held_phases_hide():
