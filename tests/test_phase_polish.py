@@ -41,7 +41,7 @@ def test_the_polish_takes_a_named_compliance_to_the_truth():
     assert model.phases == held         # the caller decides whose phases the model holds
     p = d.polish_
     assert p["candidate"] == "drive_compliance" and 1 <= p["steps"] <= POLISH_PHASE_STEPS
-    assert out.extra["polished"] == p["steps"] and set(out.extra["fit_phases"]) == {0, 1}
+    assert out.extra["phase_steps"] == p["steps"] and set(out.extra["fit_phases"]) == {0, 1}
     assert p["before"] == {"values": {"drive_compliance": pytest.approx(C_NAMED)}, "rmse_fit": res.rmse_fit}
     assert p["after"]["values"]["drive_compliance"] == out.values["drive_compliance"]
     assert p["units"] == {"drive_compliance": "rad/(N*m)"}

@@ -906,8 +906,6 @@ class Diagnosis:
 
         self.polish_ = {"candidate": cand.id, "steps": int(out.extra.get("phase_steps", 0)) if out is not res else 0,
                         "units": {p.name: p.unit for p in cand.params}, "before": record(res), "after": record(out)}
-        if out is not res:
-            out.extra["polished"] = self.polish_["steps"]
         return out
 
     @staticmethod
