@@ -13,7 +13,7 @@ import pytest
 
 from szdyn.diagnose.diagnosis import POLISH_PHASE_STEPS, Diagnosis
 from szdyn.diagnose.phase import estimate_phases
-from szdyn.diagnose.report import _polish_md
+from szdyn.diagnose.report import _polish_md, _status
 from szdyn.run import main as run_main
 
 from test_phase_step import C_TRUE, WindUp, _rigid_refit
@@ -42,6 +42,9 @@ def test_the_polish_takes_a_named_compliance_to_the_truth():
     p = d.polish_
     assert p["candidate"] == "drive_compliance" and 1 <= p["steps"] <= POLISH_PHASE_STEPS
     assert out.extra["phase_steps"] == p["steps"] and set(out.extra["fit_phases"]) == {0, 1}
+    # the candidates table's status line names the option its steps came from
+    assert f"{p['steps']} phase-profiled step(s) (--phase-polish)" in _status(out)
+    assert "(--phase-steps)" not in _status(out) and "phase_flag" not in res.extra
     assert p["before"] == {"values": {"drive_compliance": pytest.approx(C_NAMED)}, "rmse_fit": res.rmse_fit}
     assert p["after"]["values"]["drive_compliance"] == out.values["drive_compliance"]
     assert p["units"] == {"drive_compliance": "rad/(N*m)"}

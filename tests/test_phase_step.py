@@ -15,6 +15,7 @@ from szdyn.diagnose.candidates import CANDIDATES
 from szdyn.diagnose.diagnosis import Diagnosis
 from szdyn.diagnose.fit import FitResult, Hypothesis
 from szdyn.diagnose.phase import estimate_phases
+from szdyn.diagnose.report import _status
 
 START = {"k_c": 0.05, "b_c": 0.0075, "k_imp": 4e12, "mu_s": 0.3, "mu_k": 0.25}
 N_CIRCLES = 100
@@ -186,6 +187,7 @@ def test_a_phase_ladder_finds_a_compliance_the_held_phases_hide():
     out = Diagnosis(phase_steps=2)._phase_step(model, h, res, [0, 1], what="refit of drive_compliance",
                                                max_jac=2)
     assert out is not res and out.extra["phase_steps"] >= 1
+    assert f"{out.extra['phase_steps']} phase-profiled step(s) (--phase-steps)" in _status(out)
     # within the ladder's spacing (a factor 1.6) of the truth at least, and the fit far better
     assert out.values["drive_compliance"] == pytest.approx(C_TRUE, rel=0.1)
     assert out.rmse_fit < 0.3 * res.rmse_fit

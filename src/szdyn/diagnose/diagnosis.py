@@ -899,6 +899,8 @@ class Diagnosis:
                                    max_jac=self.max_jac)
         finally:
             self._steps = steps
+        if out is not res:
+            out.extra["phase_flag"] = "--phase-polish"  # the status line names where its steps came from
         names = [p.name for p in cand.params]
 
         def record(r):

@@ -141,7 +141,7 @@ def _status(res) -> str:
         steps = f"; {', then '.join(ex['unstall_steps'])}" if ex.get("unstall_steps") else ""
         parts.append(f"restarted {ex['unstalled']}x from its linear step (a stall{steps})")
     if ex.get("phase_steps"):
-        parts.append(f"{ex['phase_steps']} phase-profiled step(s) (--phase-steps)")
+        parts.append(f"{ex['phase_steps']} phase-profiled step(s) ({ex.get('phase_flag', '--phase-steps')})")
     if ex.get("settled_by"):
         parts.append(f"no further starts ({ex['settled_by']} already explained the mismatch)")
     how = "stopped by its budget" if res.budget_hit else "converged"
