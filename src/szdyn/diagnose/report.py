@@ -61,6 +61,9 @@ UNITS = {"rmse": "rad/s", "heldout_rmse": "rad/s", "noise_floor": "rad/s", "t0":
                           "std are local (uncorrected)",
          "polish": "values: the named effect's parameters in the units listed with them; rmse_fit: the fit "
                    "recordings' RMSE before and after the phase-profiled steps (rad/s, weighted as the fit)",
+         "kept_over (effect)": "later fits of the candidate that fitted better but held out rival_heldout "
+                               "times worse, both within rival_floor noise floors: fit (which one), "
+                               "rmse_fit and heldout_rmse (rad/s, weighted as the fit)",
          "k_c": "N*m/rad", "b_c": "N*m*s/rad", "k_imp": "N/m^n", "b_imp": "N*s/m^(n+1)", "mu_s": "1", "mu_k": "1"}
 
 
@@ -142,6 +145,12 @@ def _status(res) -> str:
         parts.append(f"restarted {ex['unstalled']}x from its linear step (a stall{steps})")
     if ex.get("phase_steps"):
         parts.append(f"{ex['phase_steps']} phase-profiled step(s) ({ex.get('phase_flag', '--phase-steps')})")
+    if ex.get("kept_over"):
+        # the held-out recordings chose between fits the fit could not part: not an independent check
+        later = ", ".join(f"{k['fit']} (fit {_f(k['rmse_fit'])}, held-out {_f(k['heldout_rmse'])} rad/s)"
+                          for k in ex["kept_over"])
+        parts.append("kept over later fits that fitted better but held out worse (by the close rivals' test), "
+                     "the held-out recordings choosing: " + later)
     if ex.get("settled_by"):
         parts.append(f"no further starts ({ex['settled_by']} already explained the mismatch)")
     how = "stopped by its budget" if res.budget_hit else "converged"
@@ -249,6 +258,7 @@ def _to_json(d) -> dict:
                                                         res.corr[res.hypothesis.n_base:, res.hypothesis.n_base:])},
                          "fit_rmse": res.rmse_fit, "heldout_rmse": r["heldout_rmse"],
                          "phase_steps": res.extra.get("phase_steps", 0),
+                         "kept_over": res.extra.get("kept_over", []),
                          "dbic": r["dbic"], "heldout_gain": r["heldout_gain"], "eligible": r["eligible"],
                          "explains_mismatch": d.rule.explains_mismatch(
                              res.rmse_fit, d.floor_, h0=d.heldout_["before"]["heldout_rmse"], hc=r["heldout_rmse"]),
