@@ -132,7 +132,7 @@ class SelectionRule:
 
     def earlier_start_kept(self, *, fit_earlier, heldout_earlier, fit_later, heldout_later, floor) -> bool:
         """Whether one candidate's earlier fit is kept over a later one that fits better (a further
-        start, or a continuation): both leave the fit within ``rival_floor`` noise floors, where
+        start, a restart or a continuation): both leave the fit within ``rival_floor`` noise floors, where
         the fit recordings no longer part them by more than the floor's own uncertainty, and the
         earlier holds out ``rival_heldout`` times better or more. The close rivals' test (step 4)
         between fits of one candidate. Fit and held-out values are RMSEs (rad/s); a NaN held-out
