@@ -1,5 +1,5 @@
 """Between fits of one candidate that the fit cannot part, the held-out recordings decide
-(SelectionRule.earlier_start_kept, Diagnosis._keeps_earlier).
+(SelectionRule.heldout_decides, Diagnosis._keeps_earlier).
 
 The numbers are friction_asymmetry seed 49's (out of sample): the first start fitted at 1.34
 noise floors and held out at 0.0093 rad/s, the second start fitted at 1.11 floors and held out at
@@ -20,8 +20,8 @@ SECOND = {"fit": 0.009162, "held": 0.1189}
 
 
 def _kept(rule, earlier, later, floor=FLOOR):
-    return rule.earlier_start_kept(fit_earlier=earlier["fit"], heldout_earlier=earlier["held"],
-                                   fit_later=later["fit"], heldout_later=later["held"], floor=floor)
+    return rule.heldout_decides(fit_chosen=earlier["fit"], heldout_chosen=earlier["held"],
+                                fit_other=later["fit"], heldout_other=later["held"], floor=floor)
 
 
 def test_the_earlier_fit_is_kept_only_where_the_fit_cannot_part_them_and_the_held_out_can():

@@ -874,7 +874,7 @@ class Diagnosis:
     def _keeps_earlier(self, cid: str, res, heldout: float, later: str) -> bool:
         """Whether candidate ``cid``'s fit in ``refits_`` is kept over ``res``, a later fit of it
         that fits better (a further start, a restart from its linear or phase-profiled step, a
-        continuation), by :meth:`~.selection.SelectionRule.earlier_start_kept`: the fit cannot
+        continuation), by :meth:`~.selection.SelectionRule.heldout_decides`: the fit cannot
         part them (both within ``rule.rival_floor`` noise floors) and the held-out recordings
         can (the earlier holds out ``rule.rival_heldout`` times better or more).
 
@@ -900,9 +900,9 @@ class Diagnosis:
             ``extra["kept_over"]`` (the report's status line says the held-out recordings chose).
         """
         prev = self.refits_.get(cid)
-        if prev is None or not self.rule.earlier_start_kept(
-                fit_earlier=prev["result"].rmse_fit, heldout_earlier=prev["heldout_rmse"],
-                fit_later=res.rmse_fit, heldout_later=heldout, floor=self.floor_):
+        if prev is None or not self.rule.heldout_decides(
+                fit_chosen=prev["result"].rmse_fit, heldout_chosen=prev["heldout_rmse"],
+                fit_other=res.rmse_fit, heldout_other=heldout, floor=self.floor_):
             return False
         self.log(f"  {cid}: kept the earlier fit over {later}: fit RMSE {res.rmse_fit:.4g} against "
                  f"{prev['result'].rmse_fit:.4g} (both within {self.rule.rival_floor:g} noise floors), "

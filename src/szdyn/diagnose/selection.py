@@ -69,7 +69,7 @@ held-out RMSEs:
    (:func:`close_rivals`).
    Which effect is named changes; whether one is, does not: no new false discovery.
    The same test parts the fits of one candidate (its starts, restarts and continuation,
-   :meth:`SelectionRule.earlier_start_kept`): a later fit that fits better replaces the earlier
+   :meth:`SelectionRule.heldout_decides`): a later fit that fits better replaces the earlier
    one unless both leave the fit within ``rival_floor`` floors and the earlier holds out
    ``rival_heldout`` times better. Out-of-sample friction_asymmetry seed 49: the second start
    fitted at 1.11 floors against 1.34 and held out at 0.119 rad/s against 0.0093.
@@ -130,17 +130,19 @@ class SelectionRule:
         # neighbouring feature samples share half their smoothing window
         return max(n_fit / 2.0, 2.0)
 
-    def earlier_start_kept(self, *, fit_earlier, heldout_earlier, fit_later, heldout_later, floor) -> bool:
-        """Whether one candidate's earlier fit is kept over a later one that fits better (a further
-        start, a restart or a continuation): both leave the fit within ``rival_floor`` noise floors, where
-        the fit recordings no longer part them by more than the floor's own uncertainty, and the
-        earlier holds out ``rival_heldout`` times better or more. The close rivals' test (step 4)
-        between fits of one candidate. Fit and held-out values are RMSEs (rad/s); a NaN held-out
-        (no held-out recordings) compares false."""
+    def heldout_decides(self, *, fit_chosen, heldout_chosen, fit_other, heldout_other, floor) -> bool:
+        """Whether the held-out recordings choose one fit over another that the fit prefers: both
+        leave the fit within ``rival_floor`` noise floors, where the fit recordings no longer part
+        them by more than the floor's own uncertainty, and the chosen one holds out
+        ``rival_heldout`` times better or more. Between close rivals (step 4: the chosen one a
+        rival, the other the one explaining most) and between fits of one candidate (the chosen
+        one its earlier fit, the other a later start, restart or continuation that fits better).
+        Fit and held-out values are RMSEs (rad/s); a NaN held-out (no held-out recordings)
+        compares false."""
         lim = self.rival_floor * floor
-        return bool(fit_earlier <= lim and fit_later <= lim
-                    and math.isfinite(heldout_earlier) and math.isfinite(heldout_later)
-                    and heldout_earlier * self.rival_heldout <= heldout_later)
+        return bool(fit_chosen <= lim and fit_other <= lim
+                    and math.isfinite(heldout_chosen) and math.isfinite(heldout_other)
+                    and heldout_chosen * self.rival_heldout <= heldout_other)
 
     def indistinguishable(self, *, rss_selected, rss_other, n_fit) -> bool:
         """Whether an eligible rival fits within ``min_dbic`` of the selected candidate."""
@@ -224,9 +226,11 @@ def decide(rule: SelectionRule, refits: dict, *, mismatch: bool, floor: float,
     lim = rule.rival_floor * floor
     close = [k for k in complete if k != best and refits[k]["rmse_fit"] <= lim
              and math.isfinite(refits[k]["heldout_rmse"])]
-    if refits[best]["rmse_fit"] <= lim and close:
+    if close:
         alt = min(close, key=lambda k: refits[k]["heldout_rmse"])
-        if refits[alt]["heldout_rmse"] * rule.rival_heldout <= refits[best]["heldout_rmse"]:
+        if rule.heldout_decides(fit_chosen=refits[alt]["rmse_fit"], heldout_chosen=refits[alt]["heldout_rmse"],
+                                fit_other=refits[best]["rmse_fit"], heldout_other=refits[best]["heldout_rmse"],
+                                floor=floor):
             passed_over, best = best, alt
     # rivals the information criterion cannot tell from the selected one (e.g. load_lift and
     # friction_asymmetry at one load: both a constant torque against extension while the band
