@@ -9,8 +9,13 @@ from __future__ import annotations
 
 import json
 import math
+import signal
+import subprocess
+import sys
+import time
 from argparse import Namespace
 from dataclasses import dataclass, replace
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -27,6 +32,8 @@ from szdyn.params import param_names
 from szdyn.errors import UserInputError
 from szdyn.run import main as run_main
 from szdyn.synth import EFFECTS, RampSpec, synthesize
+
+ROOT = Path(__file__).resolve().parents[1]
 
 START = {"k_c": 0.05, "b_c": 7.5e-3, "k_imp": 4e12, "mu_s": 0.3, "mu_k": 0.25}
 
@@ -1819,6 +1826,41 @@ def test_an_interrupted_diagnosis_resumes_from_its_saved_runs_to_the_same_answer
     assert d["cost"]["model_runs"] == 0 and d["cost"]["resumed_runs"] == d0["cost"]["model_runs"]
     assert d["selected"] == d0["selected"] and d["fit"] == d0["fit"]
     assert not (tmp_path / "r" / "checkpoint").exists()
+
+
+@pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="needs /proc")
+def test_a_diagnosis_sent_sigterm_saves_its_runs_and_leaves_no_worker(null, tmp_path):
+    """``kill`` (SIGTERM, as a batch scheduler stops a job) of a diagnosis on two workers: it
+    stops as on Ctrl-C (runs saved, how to resume said, exit 143, no partial results) and its
+    pool workers end too (before szdyn.processes they stayed, idle, holding their memory)."""
+    from test_processes import alive, children
+
+    _, _, out = null
+    man = str(out.parent / "data" / "manifest.toml")
+    res = tmp_path / "r"
+    proc = subprocess.Popen([sys.executable, "-m", "szdyn.run", "diagnose", man, "--out", str(res),
+                             "--workers", "2", *SMALL], cwd=ROOT, stderr=subprocess.PIPE, text=True)
+    try:
+        deadline = time.monotonic() + 300
+        while time.monotonic() < deadline and not list((res / "checkpoint").glob("runs-*.npz")):
+            assert proc.poll() is None, "the diagnosis ended before its first runs were saved"
+            time.sleep(0.05)
+        workers = children(proc.pid)
+        proc.send_signal(signal.SIGTERM)
+        _, err = proc.communicate(timeout=120)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    assert proc.returncode == 143, err
+    assert "re-run the same command to resume" in err and "terminated (SIGTERM)" in err
+    assert "Traceback" not in err
+    assert list((res / "checkpoint").glob("runs-*.npz")) and not (res / "diagnosis.json").exists()
+    assert len(workers) >= 2        # the two pool workers (and multiprocessing's resource tracker)
+    deadline = time.monotonic() + 30
+    while time.monotonic() < deadline and any(alive(p) for p in workers):
+        time.sleep(0.1)
+    assert not [p for p in workers if alive(p)]
 
 
 def test_diagnose_without_checkpoint_or_with_an_out_that_is_a_file(null, tmp_path, monkeypatch):

@@ -19,6 +19,11 @@ class SimulationError(RuntimeError):
         self.trajectory = trajectory
 
 
+class Terminated(KeyboardInterrupt):
+    """SIGTERM received by a command (:func:`szdyn.processes.sigterm_as_interrupt`): handled as
+    Ctrl-C is, so that what finished is saved and the command says how to resume."""
+
+
 class UserInputError(ValueError):
     """Base class for mistakes in what the user supplied (CLI arguments, config files, data)."""
 

@@ -285,8 +285,13 @@ def main(argv=None) -> int:
               f"{', '.join(COMMANDS)}",
               file=sys.stderr)
         return 2
+    from .processes import sigterm_as_interrupt
+
+    sigterm = None
     try:
-        with warnings.catch_warnings():
+        # SIGTERM (kill, a scheduler's stop) stops a command as Ctrl-C does: runs saved, pool
+        # workers stopped, how to resume said
+        with warnings.catch_warnings(), sigterm_as_interrupt() as sigterm:
             # a warning for the user (a parameter taken from the defaults ...) without the
             # source line Python's default format adds
             warnings.showwarning = _show_warning
@@ -300,6 +305,9 @@ def main(argv=None) -> int:
     except (KeyboardInterrupt, SystemError) as exc:
         if not interrupted(exc):
             raise
+        if sigterm is not None and sigterm.received:
+            print("szdyn: terminated (SIGTERM)", file=sys.stderr)
+            return 143      # 128 + SIGTERM, as a shell reports a process it ended
         print("szdyn: interrupted", file=sys.stderr)
         return 130
 

@@ -64,6 +64,7 @@ from .cli import Parser
 from .errors import ParameterError, SimulationError, UserInputError, interrupted
 from .io import atomic_write_bytes, atomic_write_text, write_json
 from .metrics import Metric, evaluate_metrics, metric_unit
+from .processes import worker_init
 from .sweep_spec import SweepSpec, build_drive, load_spec, spec_diff
 
 __all__ = ["run_sweep", "run_case", "sweep_command", "SweepResult", "assemble", "load_spec"]
@@ -143,14 +144,6 @@ def _float_or_none(v):
     except (TypeError, ValueError):
         return None
     return v if math.isfinite(v) else None
-
-
-def _worker_init() -> None:
-    """Process-pool worker: leave Ctrl-C to the parent, preload the model."""
-    import signal
-
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-    from . import simulate  # noqa: F401  (imports numba and the generated model once)
 
 
 # --------------------------------------------------------------------------- case files
@@ -301,7 +294,7 @@ def _iter_pool(tasks, workers: int, context: str = "spawn"):
     ctx = mp.get_context(context)
     if context == "forkserver":
         ctx.set_forkserver_preload(["szdyn.simulate"])
-    pool = ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=_worker_init)
+    pool = ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=worker_init)
     clean = False
     try:
         it = iter(tasks)

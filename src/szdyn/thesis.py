@@ -24,6 +24,7 @@ import numpy as np
 from .criteria import evaluate_fig10
 from .io import write_json
 from .params import ParameterSet
+from .processes import exit_with_parent
 from .scenarios import thesis_fig10
 from .simulate import OUTPUT_UNITS
 
@@ -100,7 +101,9 @@ def run_fig10(params: ParameterSet, out: Path, *, models=tuple(CONTACT_MODELS), 
     stats = {}
     t0 = time.perf_counter()
     # spawn: numba-compiled code and fork do not mix; workers load the on-disk compile cache.
-    with cf.ProcessPoolExecutor(max_workers=workers, mp_context=mp.get_context("spawn")) as pool:
+    # Workers take Ctrl-C with the parent (a run is long) and end with it when it is killed.
+    with cf.ProcessPoolExecutor(max_workers=workers, mp_context=mp.get_context("spawn"),
+                                initializer=exit_with_parent) as pool:
         futs = {pool.submit(_one_run, params.to_dict(), m, s, integ, out / m / f"{s.name}.csv"): (m, s.name)
                 for m, s in jobs}
         for k, fut in enumerate(cf.as_completed(futs), 1):

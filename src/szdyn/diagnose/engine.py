@@ -35,6 +35,7 @@ import numpy as np
 from scipy.signal import savgol_filter
 
 from ..errors import SimulationError
+from ..processes import worker_init
 from .data import SIM_DT, WINDOW_S, Prepared
 
 __all__ = ["FeatureModel", "apply_sensor_transform", "arm_damper_rate", "integrators", "model_speed",
@@ -129,13 +130,6 @@ def _simulate(task):
                 continue
             return run.trajectory.t, qb - qb[0], tau
     return None
-
-
-def _worker_init():
-    import signal
-
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-    from .. import simulate  # noqa: F401  (numba and the generated model, once per worker)
 
 
 def apply_sensor_transform(t, theta_b, sensor: dict):
@@ -233,7 +227,7 @@ class FeatureModel:
             from concurrent.futures import ProcessPoolExecutor
 
             self._pool = ProcessPoolExecutor(self.workers, mp_context=mp.get_context("spawn"),
-                                             initializer=_worker_init)
+                                             initializer=worker_init)
         return self._pool
 
     def close(self):
