@@ -78,7 +78,7 @@ def test_pool_workers_end_with_a_killed_parent(tmp_path, init):
     script = tmp_path / "pool.py"
     script.write_text(POOL)
     proc = subprocess.Popen([sys.executable, str(script), init], cwd=ROOT, stdout=subprocess.PIPE,
-                            text=True, env={**os.environ, "PYTHONPATH": str(ROOT / "src")})
+                            text=True)
     try:
         workers = [int(p) for p in proc.stdout.readline().split()]
         assert len(workers) == 2 and all(alive(p) for p in workers)
