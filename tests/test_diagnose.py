@@ -1168,6 +1168,7 @@ def test_diagnosis_json_schema(viscous):
     assert d["ablation"]["candidate"] == "slider_viscous" and not d["ablation"]["adopted"]
     assert d["restart"] is None            # (off by default)
     assert d["heavy_look"] is None         # (only after "unexplained")
+    assert d["scale_profile"] is None      # (off by default)
     # the effect parameter comes with its (local) standard deviation, from the Jacobian corrected
     # along the force scale by runs (.force_scale), the same in the effect's entry and the final
     sel = next(e for e in d["effects"] if e["selected"])
@@ -1456,6 +1457,28 @@ def test_a_choice_by_the_heldout_recordings_reaches_the_report_and_the_json(visc
     assert "**Chosen by the held-out recordings.** `load_lift` explained more" in report
     assert "not an independent check" in report
     assert "Chosen by the held-out recordings" not in (out / "report.md").read_text()
+
+
+def test_scale_profile_on_request_is_recorded_and_reported(viscous, tmp_path):
+    """``--scale-profile``: the named drag's fit started again with every force scaled after
+    the decision; diagnosis.json and the report say what each start gave, and the answer stands."""
+    _, d0, out = viscous
+    man = out.parent / "data" / "manifest.toml"
+    assert run_main(["diagnose", str(man), "--out", str(tmp_path / "p"), *SMALL, "--scale-profile"]) == 0
+    d = json.loads((tmp_path / "p" / "diagnosis.json").read_text())
+    assert d["selected"] == d0["selected"] == ["slider_viscous"]
+    sp = d["scale_profile"]
+    assert sp["candidate"] == "slider_viscous" and sp["factors"] == [0.8, 0.87, 0.93, 1.07, 1.15, 1.25]
+    assert len(sp["rmse_fit"]) == 6 and all(r is None or r > 0 for r in sp["rmse_fit"])
+    assert sp["rmse_before"] == pytest.approx(d0["fit"]["after"]["fit_rmse"])    # the same fit before
+    if sp["chosen"] is None:
+        assert sp["after"] == sp["before"] and d["final"]["values"] == pytest.approx(d0["final"]["values"])
+    else:
+        assert sp["after"]["rmse_fit"] < sp["rmse_before"] and sp["chosen"] in sp["factors"]
+        assert d["final"]["values"]["c_visc"] == pytest.approx(sp["after"]["values"]["c_visc"])
+        assert d["fit"]["after"]["fit_rmse"] == pytest.approx(sp["after"]["rmse_fit"])
+    assert "**Profiled along the force scale.**" in (tmp_path / "p" / "report.md").read_text()
+    assert "Profiled along the force scale" not in (out / "report.md").read_text()
 
 
 def test_models_sharing_a_cache_run_each_point_once_whatever_the_roles(null):

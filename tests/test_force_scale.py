@@ -7,9 +7,10 @@ import pytest
 
 from szdyn.diagnose.candidates import CANDIDATES, RIGID_COMPLIANCE
 from szdyn.diagnose.engine import FeatureModel
-from szdyn.diagnose.fit import FitResult, Hypothesis, _uncertainty
+from szdyn.diagnose.fit import FitResult, Hypothesis, _uncertainty, fit_hypothesis
 from szdyn.diagnose.force_scale import (FORCE_SCALE_STEP, HELDOUT_SCALE_POINTS, force_scale_direction,
-                                        force_scale_secant, heldout_along_force_scale)
+                                        force_scale_secant, heldout_along_force_scale,
+                                        profile_along_force_scale)
 
 START = {"k_c": 0.05, "b_c": 0.0075, "k_imp": 4e12, "mu_s": 0.3, "mu_k": 0.25}
 
@@ -188,3 +189,98 @@ def test_steps_past_the_rigid_drive_are_skipped_along_the_held_out_scan():
     a = np.asarray(HELDOUT_SCALE_POINTS)
     assert [r is None for r in out["rmse"][0]] == list(1.02 * (1.0 - a * 0.1) < 1.0)
     assert any(r is None for r in out["rmse"][0]) and any(r == 0.0 for r in out["rmse"][0])
+
+
+class Rippled(LinearModel):
+    """A model blind to the force scale but for a ripple along it (the impact bumps): valleys
+    a period ``P`` apart in log scale, the deepest at ``t = 0`` (``t``: the mean of the base's log
+    coordinates), and a transverse part ``A u`` that the fit determines well."""
+
+    P, RIPPLE, PULL = 0.6, 1.0, 0.05
+
+    def residuals(self, points, which):
+        out = []
+        for pt in points:
+            x = self._x(pt)
+            t = float(np.mean(x[:5]))
+            u = x - t * np.r_[1.0, 1.0, 1.0, 1.0, 1.0, 0.0]
+            out.append(np.r_[self.y - self.A @ u, self.RIPPLE * (1 - math.cos(2 * math.pi * t / self.P)),
+                             self.PULL * t])
+        return np.array(out)
+
+
+def _rippled(t0, seed=0):
+    """The rippled model and a fit of it started ``t0`` along the scale (load_lift's hypothesis)."""
+    rng = np.random.default_rng(seed)
+    h = Hypothesis(START, CANDIDATES["load_lift"])
+    A = rng.standard_normal((40, 6))
+    model = Rippled(h, A, np.zeros(40))
+    res = fit_hypothesis(model, h, [0], x0=np.r_[np.full(5, t0), 0.01], max_jac=8, tol=1e-8)
+    return h, model, res
+
+
+def test_a_fit_stopped_in_a_ripple_of_the_scale_is_taken_to_the_deepest_valley():
+    h, model, res = _rippled(0.6)
+    t = float(np.mean(res.x[:5]))
+    assert t == pytest.approx(0.6, abs=0.05)        # the fit stayed in the valley it started in
+    best, rec = profile_along_force_scale(model, h, res, [0], factors=(0.55, 1.3), max_jac=8)
+    assert rec["chosen"] == 0.55 and best is not res
+    assert abs(float(np.mean(best.x[:5]))) < 0.02 and best.rss_fit < 0.01 * res.rss_fit
+    assert rec["factors"] == [0.55, 1.3] and rec["rmse_before"] == res.rmse_fit
+    assert rec["rmse_fit"][0] == best.rmse_fit and rec["rmse_fit"][1] > best.rmse_fit
+    # every force moved together, by the start's factor and what the fit added (t: -0.6)
+    assert best.values["mu_k"] / res.values["mu_k"] == pytest.approx(math.exp(-t), rel=0.05)
+    assert best.extra["scale_factor"] == 0.55
+    assert best.extra["njac"] > res.extra["njac"]       # its own Jacobians counted with the fit's
+
+
+def test_a_fit_in_the_deepest_valley_is_kept_and_bad_factors_are_refused():
+    h, model, res = _rippled(0.02)
+    best, rec = profile_along_force_scale(model, h, res, [0], factors=(0.55, 1.82), max_jac=8)
+    assert best is res and rec["chosen"] is None
+    assert all(r > res.rmse_fit for r in rec["rmse_fit"])
+    for bad in ((0.0,), (-1.0,), (math.nan,)):
+        with pytest.raises(ValueError, match="factors"):
+            profile_along_force_scale(model, h, res, [0], factors=bad)
+
+
+def test_a_start_past_the_rigid_drive_is_skipped_in_the_profile():
+    h = Hypothesis(START, CANDIDATES["drive_compliance"])
+    x = np.r_[np.zeros(5), 1.1 * RIGID_COMPLIANCE]
+    res = _fit_result(h, x, np.ones((10, 6)), np.zeros(10), np.zeros((10, 6)))
+    res.extra["njac"] = 1
+    # x0.8 of every force is 1.25x the compliance (kept); x1.25 is 0.8x, past the rigid limit
+    best, rec = profile_along_force_scale(Flat(), h, res, [0], factors=(0.8, 1.25), max_jac=1)
+    assert rec["rmse_fit"][1] is None and rec["rmse_fit"][0] == 0.0
+    assert best is res      # (the flat model fits no better anywhere)
+
+
+def test_the_diagnosis_takes_the_profile_only_where_it_fits_clearly_better(monkeypatch):
+    import szdyn.diagnose.diagnosis as dg
+    from types import SimpleNamespace
+    from szdyn.diagnose.report import _scale_profile_md, _status
+
+    monkeypatch.setattr(dg, "SCALE_PROFILE_FACTORS", (0.55, 1.3))
+    h, model, res = _rippled(0.6)
+    res.extra["fit_phases"] = {0: 0.25}
+    assert dg.Diagnosis().scale_profile is False      # (off by default)
+    d = dg.Diagnosis(scale_profile=True)
+    out = d._scale_profile(model, res, [0])
+    p = d.scale_profile_
+    assert out is not res and p["chosen"] == 0.55 and out.extra["fit_phases"] == {0: 0.25}
+    assert p["candidate"] == "load_lift" and p["units"] == {"tau_lift": "N*m"}
+    assert p["before"]["rmse_fit"] == res.rmse_fit and p["after"]["rmse_fit"] == out.rmse_fit
+    assert p["after"]["force"] == pytest.approx(out.values["mu_k"] / res.values["mu_k"])
+    assert "every force x0.55 (force-scale profile)" in _status(out)
+    text = " ".join(_scale_profile_md(SimpleNamespace(scale_profile_=p)))
+    assert "The start at x0.55 fitted clearly better and was taken" in text
+    # off: nothing tried
+    d = dg.Diagnosis(scale_profile=False)
+    assert d._scale_profile(model, res, [0]) is res and getattr(d, "scale_profile_", None) is None
+    # a better fit within the information criterion's margin is not taken
+    d = dg.Diagnosis(scale_profile=True)
+    d.rule = SimpleNamespace(indistinguishable=lambda **kw: True)
+    assert d._scale_profile(model, res, [0]) is res
+    assert d.scale_profile_["chosen"] is None and d.scale_profile_["after"] == d.scale_profile_["before"]
+    text = " ".join(_scale_profile_md(SimpleNamespace(scale_profile_=d.scale_profile_)))
+    assert "None fitted clearly better" in text

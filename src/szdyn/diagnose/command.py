@@ -59,6 +59,11 @@ def _build_parser():
                     "that pass again with this many phase-profiled steps (as --phase-steps) and answer with it; "
                     "a calibration stopped beyond the gate whose ablation's base fits within it gets the same, "
                     f"calibrated from that base (default {SECOND_LOOK_STEPS}; 0: off)")
+    ap.add_argument("--scale-profile", action="store_true",
+                    help="after the decision, start the named effect's fit again with every force scaled "
+                    "(x0.8-x1.25, 3 Jacobians each) and take the best where it fits clearly better; the answer "
+                    "stands (off by default: on seed 52 it moved three parameters towards their truth and one "
+                    "away, see docs/DIAGNOSIS-DESIGN.md, \"A profile along the force scale\")")
     ap.add_argument("--phase-polish", type=int, default=POLISH_PHASE_STEPS,
                     help="when the named effect moves the wheel against the motor encoder (drive_compliance) "
                     "and its refit took no phase-profiled step, at most this many such steps of it after the "
@@ -202,7 +207,8 @@ def diagnose_command(argv) -> int:
                   polish_jac=args.polish_jac, rivals=args.rivals, exchange_split=not args.no_exchange_split,
                   weighting=args.weighting, unstall=args.unstall, fit_phase=not args.no_phase,
                   phase_steps=args.phase_steps, restart=args.restart,
-                  second_look=args.second_look, phase_polish=args.phase_polish, staged=not args.no_staged,
+                  second_look=args.second_look, phase_polish=args.phase_polish,
+                  scale_profile=args.scale_profile, staged=not args.no_staged,
                   heavy_look=not args.no_heavy_look, checkpoint=checkpoint,
                   workers=args.workers, log=log, progress=progress)
     nxt = None

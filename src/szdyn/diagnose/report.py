@@ -61,6 +61,11 @@ UNITS = {"rmse": "rad/s", "heldout_rmse": "rad/s", "noise_floor": "rad/s", "t0":
                           "std are local (uncorrected)",
          "polish": "values: the named effect's parameters in the units listed with them; rmse_fit: the fit "
                    "recordings' RMSE before and after the phase-profiled steps (rad/s, weighted as the fit)",
+         "scale_profile": "factors: every force's factor at each start (1); rmse_fit, rmse_before: the fit "
+                          "recordings' RMSE of each start's fit and of the fit before (rad/s, weighted as the "
+                          "fit; null: skipped); chosen: the factor whose fit was taken (null: none); "
+                          "before/after: values (units listed with them), force (mu_k after over before, 1), "
+                          "rmse_fit (rad/s)",
          "kept_over (effect)": "later fits of the candidate that fitted better but held out rival_heldout "
                                "times worse, both within rival_floor noise floors: fit (which one), "
                                "rmse_fit and heldout_rmse (rad/s, weighted as the fit)",
@@ -143,6 +148,8 @@ def _status(res) -> str:
         # which step (the full one or the candidate's own) each restart started from
         steps = f"; {', then '.join(ex['unstall_steps'])}" if ex.get("unstall_steps") else ""
         parts.append(f"restarted {ex['unstalled']}x from its linear step (a stall{steps})")
+    if ex.get("scale_factor"):
+        parts.append(f"started again with every force x{ex['scale_factor']:g} (force-scale profile)")
     if ex.get("phase_steps"):
         parts.append(f"{ex['phase_steps']} phase-profiled step(s) ({ex.get('phase_flag', '--phase-steps')})")
     if ex.get("kept_over"):
@@ -295,6 +302,7 @@ def _to_json(d) -> dict:
         "second_look": d.second_look_,
         "heavy_look": d.heavy_look_,
         "polish": d.polish_,
+        "scale_profile": d.scale_profile_,
         "not_identified": {k: d.recordings_[0].params[k] for k in FIXED_UNIDENTIFIED},
         "final": {"values": fin.values, "std": fin.std, "sensor": sensor},
         "uncertainty": {"calibrated": cal.extra.get("force_scale"), "final": fin.extra.get("force_scale")},
@@ -469,6 +477,29 @@ def _second_look_md(d) -> list:
             "rest. Within the gate the calibration can stop in the valley of other wheel phases, so before "
             f"answering unexplained the pass ran again with {f['steps']} phase-profiled step(s) (each trial "
             f"point judged with the phases estimated at it); this diagnosis is that pass. {cost}", ""]
+
+
+def _scale_profile_md(d) -> list:
+    """Report paragraph on the named effect's profile along the force scale (``scale_profile_``)."""
+    p = d.scale_profile_
+    if not p:
+        return []
+    runs = ", ".join(f"x{f:g} " + ("skipped" if r is None else _f(r))
+                     for f, r in zip(p["factors"], p["rmse_fit"]))
+    head = (f"**Profiled along the force scale.** Speed recordings fix the common scale of every force "
+            f"only weakly, and the fit's valley along it is rippled, so `{p['candidate']}`'s fit was "
+            f"started again with every force scaled ({runs} rad/s; the fit {_f(p['rmse_before'])}). ")
+    if p["chosen"] is not None:
+        vals = ", ".join(f"{k} {_f(p['before']['values'][k], '.4g')} -> {_f(v, '.4g')} {p['units'][k]}"
+                         for k, v in p["after"]["values"].items())
+        return [head + f"The start at x{p['chosen']:g} fitted clearly better and was taken: every force "
+                f"x{p['after']['force']:.3f}, {vals}; fit RMSE {_f(p['before']['rmse_fit'])} -> "
+                f"{_f(p['after']['rmse_fit'])} rad/s. The answer is unchanged; the values, the updated "
+                "model and the after figures are the profiled ones.", ""]
+    if p["kept_by_heldout"]:
+        return [head + "A start fitted clearly better but held out worse, both within the close rivals' "
+                "floors: the held-out recordings kept the fit (see its status line).", ""]
+    return [head + "None fitted clearly better: the values stand.", ""]
 
 
 def _polish_md(d) -> list:
@@ -662,7 +693,7 @@ def _report_md(d, js) -> str:
               "estimate says (near the full-slip cliff: on szdyn's grid a 2 % change of mu_k "
               "decided between tracking and slipping on one such recording).", ""]
         L += _heldout_scale_md(d)
-    L += _split_md(d) + _restart_md(d) + _second_look_md(d) + _heavy_look_md(d) + _polish_md(d)
+    L += _split_md(d) + _restart_md(d) + _second_look_md(d) + _heavy_look_md(d) + _polish_md(d) + _scale_profile_md(d)
     o = d.weighting_["other_pass"]
     if o is not None:
         said = (f"{o['verdict']}" + (f" ({', '.join(o['selected'])})" if o["selected"] else "")
