@@ -62,7 +62,7 @@ def _build_parser():
     ap.add_argument("--scale-profile", action="store_true",
                     help="after the decision, start the named effect's fit again with every force scaled "
                     "(x0.8-x1.25, 3 Jacobians each) and take the best where it fits clearly better; the answer "
-                    "stands (off by default: on seed 52 it moved three parameters towards their truth and one "
+                    "stands (off by default: on seed 52 it moved four parameters towards their truth and one "
                     "away, see docs/DIAGNOSIS-DESIGN.md, \"A profile along the force scale\")")
     ap.add_argument("--phase-polish", type=int, default=POLISH_PHASE_STEPS,
                     help="when the named effect moves the wheel against the motor encoder (drive_compliance) "

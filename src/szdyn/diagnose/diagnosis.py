@@ -334,8 +334,8 @@ class Diagnosis:
         of :meth:`_keeps_earlier`): the fit's valley along the force scale is rippled and its
         Jacobian oversteps that direction, so the fit stops where it entered it. The answer
         stands; the named effect's values, the final model and its after figures are the
-        profiled ones. Default False (off): on seed 52 it took four of eight named fits to a
-        valley that fits clearly better, three with the effect's parameter nearer its truth
+        profiled ones. Default False (off): on seed 52 it took five of nine named fits to a
+        valley that fits clearly better, four with the effect's parameter nearer its truth
         (slider_viscous 20 % -> 3 % off) and one farther (load_lift 2 % -> 21 %): the deepest
         valley a start along the scale reaches is not always the truth's
         (docs/DIAGNOSIS-DESIGN.md, "A profile along the force scale").
