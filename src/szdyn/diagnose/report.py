@@ -693,7 +693,8 @@ def _report_md(d, js) -> str:
               "estimate says (near the full-slip cliff: on szdyn's grid a 2 % change of mu_k "
               "decided between tracking and slipping on one such recording).", ""]
         L += _heldout_scale_md(d)
-    L += _split_md(d) + _restart_md(d) + _second_look_md(d) + _heavy_look_md(d) + _polish_md(d) + _scale_profile_md(d)
+    L += (_split_md(d) + _restart_md(d) + _second_look_md(d) + _heavy_look_md(d) + _polish_md(d)
+          + _scale_profile_md(d))
     o = d.weighting_["other_pass"]
     if o is not None:
         said = (f"{o['verdict']}" + (f" ({', '.join(o['selected'])})" if o["selected"] else "")
