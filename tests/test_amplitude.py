@@ -124,3 +124,72 @@ def test_fourth_start_only_where_the_refits_leave_the_mismatch_unexplained():
     assert best_v.rmse_fit > 5.0
     res_v = d._amplitude_start(valley, hv, best_v, _x(hv, c_visc=0.09), [0])
     assert res_v is not None and abs(res_v.values["c_visc"] - 0.03) < 0.004
+
+
+class TwoValleys:
+    """A cost in the band encoder's delay with a shallow valley where a refit stops and a deeper
+    one a factor away (out-of-sample encoder_delay seed 53: the refit stopped at 3.3 ms, and a
+    start at 1.5-2x ended near the truth's 5.5 ms); the base coefficients do not matter."""
+
+    SHALLOW, DEEP = 0.010, 0.030    # s
+
+    def cost(self, v):
+        return (1.0 - 0.4 * np.exp(-((v - self.SHALLOW) / 0.004) ** 2)
+                - 0.9 * np.exp(-((v - self.DEEP) / 0.008) ** 2))
+
+    def residuals(self, points, which):
+        out = []
+        for _, sc in points:
+            out.append(np.full(10 * len(which), self.cost(sc.get("encoder_delay_b", 0.0))))
+        return np.array(out)
+
+
+def test_fifth_start_reaches_the_deeper_valley_a_factor_away_from_the_calibrated_coefficients():
+    from szdyn.diagnose.diagnosis import AMPLITUDE_MULTIPLES, FIT_TOL
+
+    h = Hypothesis(START, CANDIDATES["encoder_delay"])
+    model = TwoValleys()
+    best = fit_hypothesis(model, h, [0], x0=_x(h, encoder_delay=TwoValleys.SHALLOW), max_jac=4)
+    assert best.values["encoder_delay"] == pytest.approx(TwoValleys.SHALLOW, abs=1e-3)   # stopped there
+    x_cal = np.log([1.1, 0.9, 1.2, 1.0, 0.95])     # calibrated coefficients, not the refit's
+    best.x[:h.n_base] = -x_cal
+    d = Diagnosis(candidates=["encoder_delay"], amplitude_starts=True)
+    res, f = d._multiple_starts(model, h, best, x_cal, [0])
+    assert res.values["encoder_delay"] == pytest.approx(TwoValleys.DEEP, abs=2e-3)
+    assert res.rss_fit < 0.5 * best.rss_fit
+    # the best of the starts, each from its multiple of the refit's delay
+    ends = {g: fit_hypothesis(TwoValleys(), h, [0], x0=np.r_[x_cal, g * TwoValleys.SHALLOW], max_jac=d.max_jac,
+                              tol=FIT_TOL).rss_fit for g in AMPLITUDE_MULTIPLES}
+    assert f in AMPLITUDE_MULTIPLES and res.rss_fit == pytest.approx(min(ends.values()))
+    # started at the calibrated coefficients: the stand-in's cost ignores them, so the fit
+    # never moved them from its start
+    np.testing.assert_allclose(res.x[:h.n_base], x_cal)
+
+
+def test_fifth_start_needs_an_amplitude_to_multiply_and_a_better_end():
+    h = Hypothesis(START, CANDIDATES["encoder_delay"])
+    model = TwoValleys()
+    d = Diagnosis(candidates=["encoder_delay"], amplitude_starts=True)
+    off = fit_hypothesis(model, h, [0], x0=_x(h, encoder_delay=0.0), max_jac=1)
+    off.x[h.n_base:] = 0.0
+    assert d._multiple_starts(model, h, off, np.zeros(5), [0]) is None       # no multiple of "off"
+    deep = fit_hypothesis(model, h, [0], x0=_x(h, encoder_delay=TwoValleys.DEEP), max_jac=4)
+    assert d._multiple_starts(model, h, deep, np.zeros(5), [0]) is None      # nothing ends better
+    assert Diagnosis().amplitude_starts is False                              # (off by default)
+
+
+@pytest.mark.parametrize("on, explained, floors, wanted", [
+    (True, 0.39, 1.35, True),       # encoder_delay seed 53's refit
+    (False, 0.39, 1.35, False),     # off
+    (True, 0.0, 1.35, False),       # explains nothing: no effect to move
+    (True, -0.2, 1.35, False),
+    (True, 0.5, 1.35, False),       # explains enough: judged as it is
+    (True, 0.39, 1.2, False),       # within the mismatch threshold (1.3 floors)
+])
+def test_fifth_start_only_for_a_refit_that_explains_part_of_a_remaining_mismatch(on, explained, floors, wanted):
+    from types import SimpleNamespace
+
+    d = Diagnosis(amplitude_starts=on)
+    d.floor_ = 0.0073
+    refit = {"explained": explained, "result": SimpleNamespace(rmse_fit=floors * d.floor_)}
+    assert d._wants_fifth_start(refit) is wanted

@@ -1481,6 +1481,23 @@ def test_scale_profile_on_request_is_recorded_and_reported(viscous, tmp_path):
     assert "Profiled along the force scale" not in (out / "report.md").read_text()
 
 
+@pytest.mark.parametrize("flag, on", [([], False), (["--amplitude-starts"], True)])
+def test_amplitude_starts_reach_the_diagnosis_only_on_request(null, tmp_path, monkeypatch, flag, on):
+    """``--amplitude-starts`` (the refits' fifth start, off by default) is handed to the diagnosis."""
+    from szdyn.diagnose import diagnosis
+
+    _, _, out = null
+    seen = []
+
+    def stop(self, recs):
+        seen.append(self.amplitude_starts)
+        raise UserInputError("stopped before the diagnosis")
+    monkeypatch.setattr(diagnosis.Diagnosis, "fit", stop)
+    man = out.parent / "data" / "manifest.toml"
+    assert run_main(["diagnose", str(man), "--out", str(tmp_path / "a"), "--quiet", *flag]) != 0
+    assert seen == [on]
+
+
 def test_models_sharing_a_cache_run_each_point_once_whatever_the_roles(null):
     """A second pass (weighted, or with the split exchanged) repeats runs of the first: with a
     shared cache they are not run again, and give the same speeds with the roles reordered."""

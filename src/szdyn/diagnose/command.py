@@ -64,6 +64,11 @@ def _build_parser():
                     "(x0.8-x1.25, 3 Jacobians each) and take the best where it fits clearly better; the answer "
                     "stands (off by default: on seed 52 it moved four parameters towards their truth and one "
                     "away, see docs/DIAGNOSIS-DESIGN.md, \"A profile along the force scale\")")
+    ap.add_argument("--amplitude-starts", action="store_true",
+                    help="a fifth start for a refit that explains part of the mismatch but less than half: the "
+                    "calibrated coefficients with the effect's amplitude x0.5 and x2 of where the refit left it "
+                    "(off by default: built on one case, see docs/DIAGNOSIS-DESIGN.md, \"Seed 54 out of sample, "
+                    "and a start a factor away\")")
     ap.add_argument("--phase-polish", type=int, default=POLISH_PHASE_STEPS,
                     help="when the named effect moves the wheel against the motor encoder (drive_compliance) "
                     "and its refit took no phase-profiled step, at most this many such steps of it after the "
@@ -208,7 +213,8 @@ def diagnose_command(argv) -> int:
                   weighting=args.weighting, unstall=args.unstall, fit_phase=not args.no_phase,
                   phase_steps=args.phase_steps, restart=args.restart,
                   second_look=args.second_look, phase_polish=args.phase_polish,
-                  scale_profile=args.scale_profile, staged=not args.no_staged,
+                  scale_profile=args.scale_profile, amplitude_starts=args.amplitude_starts,
+                  staged=not args.no_staged,
                   heavy_look=not args.no_heavy_look, checkpoint=checkpoint,
                   workers=args.workers, log=log, progress=progress)
     nxt = None
