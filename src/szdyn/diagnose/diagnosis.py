@@ -75,7 +75,7 @@ __all__ = ["AMPLITUDE_MULTIPLES", "FIT_TOL", "FLOOR_SPREAD", "POLISH_PHASE_STEPS
 #: (``Diagnosis(amplitude_starts=True)``, :meth:`Diagnosis._multiple_starts`) fits again at the
 #: calibrated coefficients. The refit's cost is rippled in the effect's amplitude and the base
 #: coefficients together, so a start a factor away can end in a deeper valley than the one the
-#: refit stopped in: out-of-sample encoder_delay seed 53 (truth 5.46 ms) stopped at 3.31 ms,
+#: refit stopped in: encoder_delay seed 53 (truth 5.46 ms; in sample for this start) stopped at 3.31 ms,
 #: explaining 39 %; from x1.5 and x2 it ended at 4.87 and 4.77 ms, explaining 60 % and 61 %
 #: (x0.5: 1.65 ms, 28 %), and with the start the diagnosis named it (4.77 ms).
 AMPLITUDE_MULTIPLES = (0.5, 2.0)
@@ -354,9 +354,9 @@ class Diagnosis:
         amplitude parameters at each of :data:`AMPLITUDE_MULTIPLES` times where that refit left
         them (:meth:`_multiple_starts`), adopted as the other starts are (if it ends better, and
         the held-out recordings do not choose the earlier fit). Default False (off): built on
-        one case (encoder_delay seed 53, named with it, 12.7 % off); on seeds 53 and 54 and their
+        one case (encoder_delay seed 53, named with it, 12.7 % off); on seeds 53-55 and their
         nulls it changed no other answer (docs/DIAGNOSIS-DESIGN.md, "Seed 54 out of sample, and a
-        start a factor away").
+        start a factor away" and "Seed 55 with the fifth start on from the start").
     staged : bool
         Where the calibration leaves a mismatch (``rule.mismatch`` at the first noise floor),
         also calibrate the base in two stages from the nominal coefficients, on the fit
