@@ -11,12 +11,21 @@ uses Heun at 100 us / dopri5), the
 diagnosis runs on them as a user would (``python -m szdyn.run diagnose``; it never reads
 ``truth.json``), and the result is scored against ``truth.json``. Resumable: finished cases are
 kept in ``--work``.
+
+``--runs-from WORK`` diagnoses again, with other ``--diagnose-args`` (by default none), the
+cases another grid run finished with ``--diagnose-args=--keep-runs``: each case's recordings and
+kept model runs are copied into ``--work``, so every run the new options share with the old
+path is read back (the checkpoint's fingerprint is of the recordings and the code, not the
+options) and only the rest are made. Its seconds are not costs and are not written. Run it with
+the code that made the runs (``PYTHONPATH`` to that tree's ``src``): runs of other code are set
+aside by ``diagnose`` and all made anew, which the grid says after the case.
 """
 from __future__ import annotations
 
 import argparse
 import json
 import math
+import shutil
 import subprocess
 import sys
 import time
@@ -29,6 +38,7 @@ from szdyn.io import atomic_write_text, write_json  # noqa: E402
 from szdyn.diagnose.design import MIN_SEPARATION  # noqa: E402
 from szdyn.synth import EFFECTS  # noqa: E402
 from szdyn.diagnose.candidates import CANDIDATES, primary_std  # noqa: E402
+from szdyn.diagnose.checkpoint import CHECKPOINT_DIR  # noqa: E402
 
 
 #: The primary parameter's value without the effect, where it is not 0. The error is relative to
@@ -51,9 +61,28 @@ def truth_primary(truth: dict, cid: str):
     return src.get(prim)
 
 
-def run_case(work: Path, effect: str, seed: int, diag_args, current: float | None = None) -> dict:
+def copy_kept_runs(source: Path, case: Path) -> None:
+    """Copy a finished case's recordings and kept model runs (``source``, a case directory of a
+    grid run with ``--keep-runs``) into ``case``, unless it already holds them."""
+    kept = source / "diagnosis" / CHECKPOINT_DIR
+    if not (source / "data" / "truth.json").is_file() or not (kept / "fingerprint.json").is_file():
+        raise SystemExit(f"--runs-from: {source} has no recordings (data/truth.json) or no kept model "
+                         f"runs (diagnosis/{CHECKPOINT_DIR}/fingerprint.json); run that grid with "
+                         "--diagnose-args=--keep-runs")
+    if not (case / "data" / "truth.json").is_file():
+        shutil.rmtree(case / "data", ignore_errors=True)    # an unfinished copy
+        shutil.copytree(source / "data", case / "data")
+    if not (case / "diagnosis" / CHECKPOINT_DIR).is_dir():
+        shutil.copytree(kept, case / "diagnosis" / CHECKPOINT_DIR)
+
+
+def run_case(work: Path, effect: str, seed: int, diag_args, current: float | None = None,
+             runs_from: Path | None = None) -> dict:
     case = work / f"{effect}-{seed}"
     data, out = case / "data", case / "diagnosis"
+    replay = runs_from is not None and not (out / "diagnosis.json").is_file()
+    if replay:
+        copy_kept_runs(runs_from / case.name, case)
     if not (data / "truth.json").is_file():
         more = [] if current is None else ["--current", repr(current)]
         # --overwrite: the work directory is the grid's own; a set without truth.json is unfinished
@@ -69,7 +98,17 @@ def run_case(work: Path, effect: str, seed: int, diag_args, current: float | Non
         t = time.perf_counter()
         subprocess.run([sys.executable, "-m", "szdyn.run", "diagnose", str(data / "manifest.toml"),
                         "--out", str(out), "--quiet", *diag_args], check=True)
-        (case / "seconds.txt").write_text(f"{time.perf_counter() - t:.1f}\n")
+        if replay:
+            # the runs read back were made by another path: this time is not the diagnosis's cost
+            (case / "seconds.txt").unlink(missing_ok=True)
+            if (out / f"{CHECKPOINT_DIR}-previous").exists():
+                # the kept runs were of other code or recordings: diagnose set them aside and made
+                # every run anew, so this is no replay of the other grid's path
+                print(f"{case}: the kept model runs of {runs_from / case.name} were not valid for this "
+                      f"code (moved to {out / (CHECKPOINT_DIR + '-previous')}); every run was made anew",
+                      file=sys.stderr, flush=True)
+        else:
+            (case / "seconds.txt").write_text(f"{time.perf_counter() - t:.1f}\n")
     truth = json.loads((data / "truth.json").read_text())
     d = json.loads((out / "diagnosis.json").read_text())
     sel = d["selected"]
@@ -238,6 +277,10 @@ def main(argv=None):
     ap.add_argument("--effects", default=",".join(EFFECTS))
     ap.add_argument("--diagnose-args", default="", help="extra diagnose options (default: none, the CLI defaults)")
     ap.add_argument("--score-only", action="store_true", help="only (re)score finished cases")
+    ap.add_argument("--runs-from", type=Path, default=None, metavar="WORK",
+                    help="another grid's --work, run with --diagnose-args=--keep-runs: diagnose each case it "
+                         "finished again (here with --diagnose-args) from its recordings and kept model runs; "
+                         "cases it has not finished are skipped; use the code that made the runs")
     ap.add_argument("--earlier", type=Path, default=None, metavar="JSON",
                     help="raw results (a --json file) of cases scored before, whose work directory is "
                          "gone: each case of this grid that --work has not finished is taken from it "
@@ -281,8 +324,13 @@ def main(argv=None):
                 continue
             if args.score_only:
                 continue
+            if args.runs_from is not None and not (args.runs_from / f"{e}-{s}" / "diagnosis" /
+                                                   "diagnosis.json").is_file():
+                print(f"[{k}/{len(cases)}] {e} seed {s}: not finished in {args.runs_from}, skipped",
+                      file=sys.stderr, flush=True)
+                continue
         print(f"[{k}/{len(cases)}] {e} seed {s}", file=sys.stderr, flush=True)
-        results.append(run_case(args.work, e, s, args.diagnose_args.split(), args.current))
+        results.append(run_case(args.work, e, s, args.diagnose_args.split(), args.current, args.runs_from))
         write_json(args.json, results)
         write_md(results, args.out, args)
     return 0

@@ -52,3 +52,49 @@ def test_the_grid_scores_what_the_next_recording_would_decide(tmp_path):
     assert grid._next_cell(close).endswith(", not sufficient")
     assert grid._next_cell(rows[0]) == "not ranked" and grid._next_cell(rows[1]) == "-"
     assert grid.next_recording_rows(rows[1:]) == []
+
+
+def test_the_grid_diagnoses_again_from_another_grids_kept_runs(tmp_path, monkeypatch):
+    """``--runs-from``: each case the other grid finished is diagnosed again here, with these
+    options, from its recordings and kept model runs; its seconds are not written (not a cost);
+    a case not finished there is skipped, and one without kept runs is refused by name."""
+    grid = load_bench("diagnosis_grid")
+    src, work = tmp_path / "src", tmp_path / "work"
+    _case(src, "slider_stribeck", 3, ["friction_drift"], None)
+    kept = src / "slider_stribeck-3" / "diagnosis" / "checkpoint"
+    kept.mkdir()
+    (kept / "fingerprint.json").write_text('"abc"')
+    (kept / "runs-00000.npz").write_bytes(b"runs")
+    calls = []
+
+    def diagnose(cmd, check):
+        # stands in for `szdyn.run diagnose`: the kept runs must be in place before it starts
+        out = tmp_path / cmd[cmd.index("--out") + 1]
+        assert (out / "checkpoint" / "runs-00000.npz").read_bytes() == b"runs"
+        assert (out.parent / "data" / "truth.json").is_file()
+        calls.append(cmd)
+        d = json.loads((src / "slider_stribeck-3" / "diagnosis" / "diagnosis.json").read_text())
+        (out / "diagnosis.json").write_text(json.dumps({**d, "selected": ["slider_stribeck"]}))
+
+    monkeypatch.setattr(grid.subprocess, "run", diagnose)
+    monkeypatch.setattr(grid, "truth_primary", lambda truth, effect: None)
+    md, js = tmp_path / "grid.md", tmp_path / "grid.json"
+    assert grid.main(["--work", str(work), "--runs-from", str(src), "--seeds", "3", "--null-seeds", "",
+                      "--effects", "slider_stribeck,load_lift", "--out", str(md), "--json", str(js),
+                      "--reading", "/dev/null", "--diagnose-args=--keep-runs"]) == 0
+    assert len(calls) == 1 and calls[0][-1] == "--keep-runs"
+    rows = json.loads(js.read_text())
+    assert [(r["effect"], r["selected"], r["correct"], r["seconds"]) for r in rows] == \
+        [("slider_stribeck", ["slider_stribeck"], True, None)]
+    assert not (work / "slider_stribeck-3" / "seconds.txt").exists() and not (work / "load_lift-3").exists()
+    # finished here: scored again without running, the source's answer untouched
+    assert grid.run_case(work, "slider_stribeck", 3, [], runs_from=src)["selected"] == ["slider_stribeck"]
+    assert len(calls) == 1
+    # a finished case whose runs were not kept cannot be replayed: the message says what to do
+    _case(src, "load_lift", 3, ["load_lift"], None)
+    try:
+        grid.run_case(work, "load_lift", 3, [], runs_from=src)
+    except SystemExit as exc:
+        assert "load_lift-3" in str(exc) and "--keep-runs" in str(exc)
+    else:
+        raise AssertionError("a case without kept runs was replayed")
