@@ -175,7 +175,7 @@ def test_fifth_start_needs_an_amplitude_to_multiply_and_a_better_end():
     assert d._multiple_starts(model, h, off, np.zeros(5), [0]) is None       # no multiple of "off"
     deep = fit_hypothesis(model, h, [0], x0=_x(h, encoder_delay=TwoValleys.DEEP), max_jac=4)
     assert d._multiple_starts(model, h, deep, np.zeros(5), [0]) is None      # nothing ends better
-    assert Diagnosis().amplitude_starts is False                              # (off by default)
+    assert Diagnosis().amplitude_starts is True                               # (on by default)
 
 
 @pytest.mark.parametrize("on, explained, floors, wanted", [

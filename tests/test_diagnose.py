@@ -1481,9 +1481,10 @@ def test_scale_profile_on_request_is_recorded_and_reported(viscous, tmp_path):
     assert "Profiled along the force scale" not in (out / "report.md").read_text()
 
 
-@pytest.mark.parametrize("flag, on", [([], False), (["--amplitude-starts"], True)])
-def test_amplitude_starts_reach_the_diagnosis_only_on_request(null, tmp_path, monkeypatch, flag, on):
-    """``--amplitude-starts`` (the refits' fifth start, off by default) is handed to the diagnosis."""
+@pytest.mark.parametrize("flag, on", [([], True), (["--amplitude-starts"], True), (["--no-amplitude-starts"], False)])
+def test_amplitude_starts_reach_the_diagnosis_unless_turned_off(null, tmp_path, monkeypatch, flag, on):
+    """The refits' fifth start (on by default since seed 56) is handed to the diagnosis, and
+    ``--no-amplitude-starts`` turns it off."""
     from szdyn.diagnose import diagnosis
 
     _, _, out = null

@@ -1,6 +1,7 @@
 """``python -m szdyn.run diagnose MANIFEST.toml --out DIR``."""
 from __future__ import annotations
 
+import argparse
 import sys
 import time
 from dataclasses import replace
@@ -64,11 +65,13 @@ def _build_parser():
                     "(x0.8-x1.25, 3 Jacobians each) and take the best where it fits clearly better; the answer "
                     "stands (off by default: on seed 52 it moved four parameters towards their truth and one "
                     "away, see docs/DIAGNOSIS-DESIGN.md, \"A profile along the force scale\")")
-    ap.add_argument("--amplitude-starts", action="store_true",
+    ap.add_argument("--amplitude-starts", action=argparse.BooleanOptionalAction, default=True,
                     help="a fifth start for a refit that explains part of the mismatch but less than half: the "
                     "calibrated coefficients with the effect's amplitude x0.5 and x2 of where the refit left it "
-                    "(off by default: built on one case, see docs/DIAGNOSIS-DESIGN.md, \"Seed 54 out of sample, "
-                    "and a start a factor away\")")
+                    "(on by default since seed 56, where it took a named effect's parameter from 41 %% to 6.5 %% "
+                    "off; --no-amplitude-starts gives the diagnosis of the earlier seeds' files of record; see "
+                    "docs/DIAGNOSIS-DESIGN.md, \"Seed 56: the fifth start's first rescue out of sample, on by "
+                    "default\")")
     ap.add_argument("--phase-polish", type=int, default=POLISH_PHASE_STEPS,
                     help="when the named effect moves the wheel against the motor encoder (drive_compliance) "
                     "and its refit took no phase-profiled step, at most this many such steps of it after the "
