@@ -193,3 +193,17 @@ def test_fifth_start_only_for_a_refit_that_explains_part_of_a_remaining_mismatch
     d.floor_ = 0.0073
     refit = {"explained": explained, "result": SimpleNamespace(rmse_fit=floors * d.floor_)}
     assert d._wants_fifth_start(refit) is wanted
+
+
+@pytest.mark.parametrize("on", [True, False])
+def test_the_report_says_whether_refits_get_the_fifth_start(on):
+    """The report's account of the refits names the fifth start exactly when it was on."""
+    from types import SimpleNamespace
+
+    from szdyn.diagnose.report import _refits_md
+    from szdyn.diagnose.selection import SelectionRule
+
+    text = _refits_md(SimpleNamespace(shortlist=2, rivals=2, rule=SelectionRule(), amplitude_starts=on))
+    assert text.startswith("Screened linearly") and text.endswith("the floor).")
+    assert ("a fifth from the calibrated coefficients with the effect's amplitude at x0.5 and x2" in text) is on
+    assert ("less than 50%" in text) is on

@@ -23,7 +23,7 @@ from ..plots import _pyplot, save_png
 from .amplitude import AMPLITUDE_GRID
 from .candidates import CANDIDATES, FIXED_UNIDENTIFIED, primary_std
 from .data import FEATURE_DT, WINDOW_S
-from .diagnosis import AMPLITUDE_PROBES
+from .diagnosis import AMPLITUDE_MULTIPLES, AMPLITUDE_PROBES
 from .locate import feature_table
 from .phase import IDENTIFIED_SHARE, PHASE_UNCERTAINTY
 
@@ -647,6 +647,24 @@ def _torque_md(d) -> list:
             + " N m). Plot: `torque_fit.png`.", ""]
 
 
+def _refits_md(d) -> str:
+    """How the shortlisted candidates were refitted: the starts each refit may get, as ``d``
+    (a fitted :class:`~szdyn.diagnose.diagnosis.Diagnosis`: ``shortlist``, ``rivals``, ``rule``
+    and ``amplitude_starts`` are read) configured them."""
+    fifth = (f"a fifth from the calibrated coefficients with the effect's amplitude at "
+             + " and ".join(f"x{m:g}" for m in AMPLITUDE_MULTIPLES)
+             + " of where the best refit left it, when that refit explains part of the mismatch but less "
+             f"than {d.rule.min_explained:.0%} and still leaves a mismatch; ") if d.amplitude_starts else ""
+    return ("Screened linearly at the calibrated point, the best "
+            f"{d.shortlist} refitted nonlinearly (base coefficients refitted too; a second start from the "
+            f"uncalibrated coefficients when the first refit is not at the floor, a third with the effect "
+            f"at an amplitude probe when it still explains too little, a fourth with the effect's amplitude "
+            f"searched over its range at the uncalibrated coefficients ({AMPLITUDE_GRID}-point scan, then a "
+            f"bounded Brent search) when the refits still leave more than {d.rule.max_remaining:g}x the floor; "
+            + fifth + f"the next {d.rivals} of the screening "
+            f"too when the provisional winner left the fit above {d.rule.rival_floor:g}x the floor).")
+
+
 def _report_md(d, js) -> str:
     L = ["# szdyn diagnosis", ""]
     v = d.verdict_
@@ -771,15 +789,7 @@ def _report_md(d, js) -> str:
         L.append(f"| {f['feature']} ({f['unit']}) | {f['r2']:.3f} | {f['suggests']} |")
     L += ["", "Plots: `residual_time.png`, `residual_features.png`.", "",
           "## Candidate effects", "",
-          "Screened linearly at the calibrated point, the best "
-          f"{d.shortlist} refitted nonlinearly (base coefficients refitted too; a second start from the "
-          f"uncalibrated coefficients when the first refit is not at the floor, a third with the effect "
-          f"at an amplitude probe when it still explains too little, a fourth with the effect's amplitude "
-          f"searched over its range at the uncalibrated coefficients ({AMPLITUDE_GRID}-point scan, then a "
-          f"bounded Brent search) when the refits still leave more than {d.rule.max_remaining:g}x the floor; "
-          f"the next {d.rivals} of the screening "
-          f"too when the provisional winner left the fit above {d.rule.rival_floor:g}x the floor). "
-          f"Rule: {d.rule}.", "",
+          _refits_md(d) + f" Rule: {d.rule}.", "",
           _nominated_md(d), "", _probing_md(d), "",
           *([f"Rivals refitted because the provisional winner left the fit above {d.rule.rival_floor:g}x "
              "the floor: " + ", ".join(f"`{k}`" for k in d.rivals_) + ".", ""] if d.rivals_ else []),
