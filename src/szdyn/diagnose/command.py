@@ -69,7 +69,7 @@ def _build_parser():
                     help="a fifth start for a refit that explains part of the mismatch but less than half: the "
                     "calibrated coefficients with the effect's amplitude x0.5 and x2 of where the refit left it "
                     "(on by default since seed 56, where it took a named effect's parameter from 41 %% to 6.5 %% "
-                    "off; --no-amplitude-starts gives the diagnosis of the earlier seeds' files of record; see "
+                    "off; --no-amplitude-starts gives the earlier default; see "
                     "docs/DIAGNOSIS-DESIGN.md, \"Seed 56: the fifth start's first rescue out of sample, on by "
                     "default\")")
     ap.add_argument("--phase-polish", type=int, default=POLISH_PHASE_STEPS,

@@ -357,9 +357,9 @@ class Diagnosis:
         fifty-third session): built on one case (encoder_delay seed 53, named with it, 12.7 %
         off); on seeds 54-55 and their nulls it changed no answer, and on seed 56, out of
         sample, it took friction_drift's k_drift from 41 % to 6.5 % off and its held-out gain
-        from 1.5x to 3.6x, the name unchanged, with fewer model runs (docs/DIAGNOSIS-DESIGN.md,
-        "Seed 56: the fifth start's first rescue out of sample, on by default"). False gives the
-        diagnosis of seeds 13-56's files of record.
+        from 1.5x to 3.6x, the name unchanged (docs/DIAGNOSIS-DESIGN.md, "Seed 56: the fifth
+        start's first rescue out of sample, on by default"). False gives the earlier default, the
+        one seeds 13-56's files of record ran with.
     staged : bool
         Where the calibration leaves a mismatch (``rule.mismatch`` at the first noise floor),
         also calibrate the base in two stages from the nominal coefficients, on the fit
