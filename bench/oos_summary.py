@@ -56,6 +56,10 @@ NO_GRID_RUN = {
     **dict.fromkeys((39, 40, 41, 42, 43), "used for the issue's cost configuration "
                     "(docs/diagnosis-cost-seedN.md): slider_viscous 39's truth is in sample for the "
                     "sensor-settling rule, and the others' truths were seen there"),
+    # chosen (with 60) by their draw alone, a negative encoder scale, and run in the cost
+    # configuration (docs/DIAGNOSIS-DESIGN.md, "The opposite confusion met")
+    **dict.fromkeys((57, 58, 60), "used for the issue's cost configuration, chosen for their "
+                    "negative encoder-scale draws (docs/diagnosis-cost-seedN.md)"),
 }
 #: Goals of issue 5.
 GOAL_NAMED, GOAL_PARAM, GOAL_GAIN = 0.90, 0.15, 3.0
