@@ -50,13 +50,13 @@ NOT_OF_RECORD = {
                                            "of record: the default of its day re-run from its kept runs (the "
                                            "same answers; friction_drift's parameter and held-out gain differ)",
 }
-#: Seeds between the first and the last with no grid run of record, and why (skipped on purpose:
-#: the grid's seeds go on after them).
+#: Seeds from the first on with no grid run of record, and why (skipped on purpose: the grid's
+#: seeds go on after them; one may lie beyond the last grid seed so far, as 60 does after 59).
 NO_GRID_RUN = {
     **dict.fromkeys((39, 40, 41, 42, 43), "used for the issue's cost configuration "
                     "(docs/diagnosis-cost-seedN.md): slider_viscous 39's truth is in sample for the "
                     "sensor-settling rule, and the others' truths were seen there"),
-    # chosen (with 60) by their draw alone, a negative encoder scale, and run in the cost
+    # chosen by their draw alone, a negative encoder scale, and run in the cost
     # configuration (docs/DIAGNOSIS-DESIGN.md, "The opposite confusion met")
     **dict.fromkeys((57, 58, 60), "used for the issue's cost configuration, chosen for their "
                     "negative encoder-scale draws (docs/diagnosis-cost-seedN.md)"),
