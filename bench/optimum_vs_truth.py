@@ -19,6 +19,12 @@ quarters), and per recording, three ways:
   calibrated base (where it did; ``wheel_phase`` in diagnosis.json);
 * ``own_phases``: each point with the phases estimated at itself (:mod:`szdyn.diagnose.phase`).
 
+For a case that named a wrong effect, one more point, ``truth, its effect``: the truth with its
+concealed effect (in that effect's own hypothesis; the points above are in the named one, where
+the concealed effect has no term). Off the line, which stays in the named hypothesis. A truth
+that fits the fit recordings better with its effect than the named answer does is a fit that
+stopped short of the right name; one that fits worse is recordings that favour the wrong name.
+
 A truth that fits the fit recordings better is a stalled fit; a barrier on the line with both
 ends alike is two valleys the fit recordings cannot tell apart (docs/DIAGNOSIS-DESIGN.md,
 "Splits that keep every load and direction"); a truth that fits well only with its own phases
@@ -83,10 +89,13 @@ def diagnosis_roles(recs, d: dict):
     return with_heldout(recs, held)
 
 
-def compare(case: Path) -> dict:
-    d = json.loads((case / "diagnosis" / "diagnosis.json").read_text())
-    truth = json.loads((case / "data" / "truth.json").read_text())
-    recs = diagnosis_roles(prepare(read_manifest(case / "data" / "manifest.toml")), d)
+def points_of(d: dict, truth: dict, recs) -> tuple:
+    """The points compared: ``(hypothesis name, {label: (model_changes, sensor_changes)})``.
+
+    ``d`` is diagnosis.json, ``truth`` truth.json, ``recs`` the prepared recordings (their
+    nominal base parameters start the hypotheses). The hypothesis is the selected effect's; for
+    a case that named none, the concealed effect's, or the base model for a null case.
+    """
     effect = d["selected"][0] if d["selected"] else (None if truth["effect"] == "none" else truth["effect"])
     start = {k: recs[0].params[k] for k in BASE}
     hyp = Hypothesis(start, CANDIDATES[effect]) if effect else Hypothesis(start)
@@ -100,12 +109,26 @@ def compare(case: Path) -> dict:
     mc, sc = hyp.point(x1)
     points = {"final": hyp.point(x0), "truth": (mc, sc), "truth, its b_imp": ({**mc, "b_imp": tv["b_imp"]}, sc)}
     points.update({f"line {a:g}": hyp.point(x0 + a * (x1 - x0)) for a in LINE})
+    if truth["effect"] not in ("none", effect):
+        # a wrong name: "truth" above is the truth's base with the named effect's final
+        # amplitude; the concealed effect has no term in the named hypothesis
+        own = Hypothesis(start, CANDIDATES[truth["effect"]])
+        points["truth, its effect"] = own.point(own.coordinates(
+            {**{k: tv[k] for k in BASE}, **truth_coordinates(truth["effect"], truth)}))
+    return effect or "base", points
+
+
+def compare(case: Path) -> dict:
+    d = json.loads((case / "diagnosis" / "diagnosis.json").read_text())
+    truth = json.loads((case / "data" / "truth.json").read_text())
+    recs = diagnosis_roles(prepare(read_manifest(case / "data" / "manifest.toml")), d)
+    hypothesis, points = points_of(d, truth, recs)
     fit_idx = [i for i, r in enumerate(recs) if r.role == "fit"]
     all_idx = list(range(len(recs)))
     diag_ph = {i: e["q_w0"] for i in all_idx
                for e in [d.get("wheel_phase", {}).get("recordings", {}).get(recs[i].name)]
                if e and e.get("identified")}
-    out = {"case": case.name, "hypothesis": effect or "base", "verdict": d["verdict"],
+    out = {"case": case.name, "hypothesis": hypothesis, "verdict": d["verdict"],
            "noise_floor": d["noise_floor"]}
     with FeatureModel(recs, workers=2) as model:
         def measure(phases_of):
@@ -114,7 +137,7 @@ def compare(case: Path) -> dict:
             for k, pt in points.items():
                 model.phases = phases_of(pt)
                 on_fit[k] = rms(model.residuals([pt], fit_idx)[0])
-                if k in ("final", "truth"):
+                if k in ("final", "truth", "truth, its effect"):
                     for i in all_idx:
                         per[recs[i].name][k] = rms(model.residuals([pt], [i])[0])
             return {"fit_recordings": on_fit, "per_recording": per}

@@ -66,3 +66,47 @@ def test_fit_recordings_follow_an_exchanged_split():
 def test_a_split_naming_an_unknown_recording_is_refused():
     with pytest.raises(ValueError, match="does not list"):
         _bench().diagnosis_roles([_Rec("a")], {"split": {"heldout": ["zz"]}})
+
+
+@dataclass(frozen=True)
+class _PRec:
+    params: dict
+
+
+def _truth(effect, seed=5):
+    _, model_changes, sensor_changes = effect_changes(effect, seed=seed)
+    perturbed = {k: {"value": v * 1.1} for k, v in {**START, "b_imp": 0.5}.items()}
+    return {"effect": effect, "effect_parameters": model_changes, "effect_sensor": sensor_changes,
+            "perturbed": perturbed}, model_changes, sensor_changes
+
+
+def _diagnosis(named, values):
+    return {"selected": [named] if named else [], "final": {"values": values}}
+
+
+def test_a_wrong_name_also_compares_the_truth_with_its_own_effect():
+    """encoder_scale named slider_viscous: the named hypothesis has no scale term, so the truth
+    is also placed in the concealed effect's hypothesis, with its base and its effect."""
+    truth, _, sensor = _truth("encoder_scale")
+    final = {**START, "c_visc": 0.01}
+    name, points = _bench().points_of(_diagnosis("slider_viscous", final), truth, [_PRec(START)])
+    assert name == "slider_viscous"
+    mc, sc = points["truth, its effect"]
+    assert sc == pytest.approx(sensor, rel=1e-12)
+    assert {k: mc[k] for k in START} == pytest.approx({k: 1.1 * v for k, v in START.items()}, rel=1e-12)
+    assert "c_visc" not in mc
+    # the line stays in the named hypothesis: the truth's base with the named drag's final value
+    assert points["truth"][0]["c_visc"] == pytest.approx(0.01)
+    assert points["truth"][1] == {}
+
+
+@pytest.mark.parametrize("named", ["encoder_scale", None])
+def test_a_right_name_or_none_adds_no_point(named):
+    truth, _, _ = _truth("encoder_scale")
+    final = {**START, **({"encoder_scale": 0.0} if named else {})}
+    name, points = _bench().points_of(_diagnosis(named, final), truth, [_PRec(START)])
+    assert name == "encoder_scale"
+    assert "truth, its effect" not in points
+    null, _, _ = _truth("slider_viscous")
+    null["effect"] = "none"
+    assert "truth, its effect" not in _bench().points_of(_diagnosis(None, START), null, [_PRec(START)])[1]
