@@ -74,39 +74,45 @@ class _PRec:
 
 
 def _truth(effect, seed=5):
+    """truth.json of a case: the base coefficients 10 % off, ``effect`` concealed."""
     _, model_changes, sensor_changes = effect_changes(effect, seed=seed)
     perturbed = {k: {"value": v * 1.1} for k, v in {**START, "b_imp": 0.5}.items()}
     return {"effect": effect, "effect_parameters": model_changes, "effect_sensor": sensor_changes,
-            "perturbed": perturbed}, model_changes, sensor_changes
+            "perturbed": perturbed}
 
 
 def _diagnosis(named, values):
     return {"selected": [named] if named else [], "final": {"values": values}}
 
 
-def test_a_wrong_name_also_compares_the_truth_with_its_own_effect():
-    """encoder_scale named slider_viscous: the named hypothesis has no scale term, so the truth
-    is also placed in the concealed effect's hypothesis, with its base and its effect."""
-    truth, _, sensor = _truth("encoder_scale")
-    final = {**START, "c_visc": 0.01}
-    name, points = _bench().points_of(_diagnosis("slider_viscous", final), truth, [_PRec(START)])
-    assert name == "slider_viscous"
+@pytest.mark.parametrize("concealed, named, named_value, named_changes",
+                         [("encoder_scale", "slider_viscous", {"c_visc": 0.01}, {"c_visc": 0.01}),
+                          ("slider_viscous", "encoder_scale", {"encoder_scale": -0.02},
+                           {"encoder_scale_b": 0.98})])
+def test_a_wrong_name_also_compares_the_truth_with_its_own_effect(concealed, named, named_value,
+                                                                   named_changes):
+    """The named hypothesis has no term for the concealed effect, so the truth is also placed in
+    the concealed effect's own hypothesis: its base, its effect's model and sensor changes, and
+    nothing of the named effect."""
+    truth = _truth(concealed)
+    name, points = _bench().points_of(_diagnosis(named, {**START, **named_value}), truth, [_PRec(START)])
+    assert name == named
     mc, sc = points["truth, its effect"]
-    assert sc == pytest.approx(sensor, rel=1e-12)
     assert {k: mc[k] for k in START} == pytest.approx({k: 1.1 * v for k, v in START.items()}, rel=1e-12)
-    assert "c_visc" not in mc
-    # the line stays in the named hypothesis: the truth's base with the named drag's final value
-    assert points["truth"][0]["c_visc"] == pytest.approx(0.01)
-    assert points["truth"][1] == {}
+    assert {k: v for k, v in mc.items() if k not in START} == pytest.approx(truth["effect_parameters"], rel=1e-12)
+    assert sc == pytest.approx(truth["effect_sensor"], rel=1e-12)
+    # the line stays in the named hypothesis: the truth's base with the named effect's final value
+    named_mc, named_sc = points["truth"]
+    assert {k: v for k, v in {**named_mc, **named_sc}.items() if k not in START} == pytest.approx(
+        named_changes, rel=1e-12)
 
 
 @pytest.mark.parametrize("named", ["encoder_scale", None])
 def test_a_right_name_or_none_adds_no_point(named):
-    truth, _, _ = _truth("encoder_scale")
+    truth = _truth("encoder_scale")
     final = {**START, **({"encoder_scale": 0.0} if named else {})}
     name, points = _bench().points_of(_diagnosis(named, final), truth, [_PRec(START)])
     assert name == "encoder_scale"
     assert "truth, its effect" not in points
-    null, _, _ = _truth("slider_viscous")
-    null["effect"] = "none"
+    null = {**_truth("slider_viscous"), "effect": "none"}
     assert "truth, its effect" not in _bench().points_of(_diagnosis(None, START), null, [_PRec(START)])[1]
