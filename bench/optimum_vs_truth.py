@@ -24,6 +24,9 @@ concealed effect (in that effect's own hypothesis; the points above are in the n
 the concealed effect has no term). Off the line, which stays in the named hypothesis. A truth
 that fits the fit recordings better with its effect than the named answer does is a fit that
 stopped short of the right name; one that fits worse is recordings that favour the wrong name.
+Where the diagnosis refitted the concealed effect, its refit too (``its effect, refitted`` for a
+wrong name, ``its refit`` for a case that named none; from ``values`` in diagnosis.json, which
+older files lack): a refit that fits worse than the truth in the same hypothesis stopped short.
 
 A truth that fits the fit recordings better is a stalled fit; a barrier on the line with both
 ends alike is two valleys the fit recordings cannot tell apart (docs/DIAGNOSIS-DESIGN.md,
@@ -115,7 +118,23 @@ def points_of(d: dict, truth: dict, recs) -> tuple:
         own = Hypothesis(start, CANDIDATES[truth["effect"]])
         points["truth, its effect"] = own.point(own.coordinates(
             {**{k: tv[k] for k in BASE}, **truth_coordinates(truth["effect"], truth)}))
+        refit = refit_values(d, truth["effect"])
+        if refit is not None:
+            points["its effect, refitted"] = own.point(own.coordinates(refit))
+    elif effect and not d["selected"]:
+        # nothing named: the diagnosis's own refit of the concealed effect, where it made one
+        refit = refit_values(d, effect)
+        if refit is not None:
+            points["its refit"] = hyp.point(hyp.coordinates(refit))
     return effect or "base", points
+
+
+def refit_values(d: dict, effect: str) -> dict | None:
+    """The diagnosis's refit of ``effect`` (base coefficients and the candidate's fit
+    parameters, ``values`` of its entry in diagnosis.json), or None where it made none (or the
+    file is older than that entry)."""
+    e = next((x for x in d["effects"] if x["id"] == effect), None)
+    return e.get("values") if e is not None and e.get("refitted") else None
 
 
 def compare(case: Path) -> dict:
@@ -137,7 +156,7 @@ def compare(case: Path) -> dict:
             for k, pt in points.items():
                 model.phases = phases_of(pt)
                 on_fit[k] = rms(model.residuals([pt], fit_idx)[0])
-                if k in ("final", "truth", "truth, its effect"):
+                if k in ("final", "truth", "truth, its effect", "its refit", "its effect, refitted"):
                     for i in all_idx:
                         per[recs[i].name][k] = rms(model.residuals([pt], [i])[0])
             return {"fit_recordings": on_fit, "per_recording": per}

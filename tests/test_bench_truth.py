@@ -81,8 +81,11 @@ def _truth(effect, seed=5):
             "perturbed": perturbed}
 
 
-def _diagnosis(named, values):
-    return {"selected": [named] if named else [], "final": {"values": values}}
+def _diagnosis(named, values, refits=None):
+    """diagnosis.json of a case that named ``named`` (None: none) with final ``values``;
+    ``refits``: {effect: the refit's values} of the effects refitted."""
+    effects = [{"id": k, "refitted": True, "values": v} for k, v in (refits or {}).items()]
+    return {"selected": [named] if named else [], "final": {"values": values}, "effects": effects}
 
 
 @pytest.mark.parametrize("concealed, named, named_value, named_changes",
@@ -116,3 +119,35 @@ def test_a_right_name_or_none_adds_no_point(named):
     assert "truth, its effect" not in points
     null = {**_truth("slider_viscous"), "effect": "none"}
     assert "truth, its effect" not in _bench().points_of(_diagnosis(None, START), null, [_PRec(START)])[1]
+
+
+REFIT_BASE = {"k_c": 0.06, "b_c": 0.008, "k_imp": 5e12, "mu_s": 0.35, "mu_k": 0.3}
+
+
+@pytest.mark.parametrize("named", ["slider_viscous", None])
+def test_the_diagnosis_refit_of_the_concealed_effect_is_a_point(named):
+    """Where the diagnosis refitted the concealed effect without naming it, its refit (base and
+    the effect's own parameters, ``values`` in diagnosis.json) is placed in the concealed
+    effect's hypothesis, beside the truth."""
+    truth = _truth("encoder_scale")
+    refit = {**REFIT_BASE, "encoder_scale": -0.03}
+    final = {**START, **({"c_visc": 0.01} if named else {})}
+    _, points = _bench().points_of(_diagnosis(named, final, {"encoder_scale": refit}), truth, [_PRec(START)])
+    label = "its effect, refitted" if named else "its refit"
+    assert {"its effect, refitted", "its refit"} & set(points) == {label}
+    mc, sc = points[label]
+    assert {k: mc[k] for k in REFIT_BASE} == pytest.approx(REFIT_BASE, rel=1e-12)
+    assert set(mc) == set(REFIT_BASE)       # a sensor effect: no model change of its own
+    assert sc == pytest.approx(CANDIDATES["encoder_scale"].apply({"encoder_scale": -0.03})[1], rel=1e-12)
+
+
+def test_no_refit_point_without_a_refit_of_the_concealed_effect():
+    """Not refitted (or a diagnosis.json older than ``values``), or refitted and named: no point."""
+    truth = _truth("encoder_scale")
+    others = {"slider_viscous": {**REFIT_BASE, "c_visc": 0.01}}
+    for d in (_diagnosis(None, START, others), _diagnosis("slider_viscous", {**START, "c_visc": 0.01}, others),
+              {**_diagnosis(None, START), "effects": [{"id": "encoder_scale", "refitted": True}]},
+              _diagnosis("encoder_scale", {**START, "encoder_scale": 0.0},
+                         {"encoder_scale": {**REFIT_BASE, "encoder_scale": 0.0}})):
+        points = _bench().points_of(d, truth, [_PRec(START)])[1]
+        assert not {"its effect, refitted", "its refit"} & set(points)

@@ -1145,6 +1145,10 @@ def test_diagnosis_json_schema(viscous):
     assert d["calibration_status"].split(" after ")[0] in ("converged", "stopped by its budget")
     refitted = [e for e in d["effects"] if e["refitted"]]
     assert refitted and all(" Jacobians" in e["fit_status"] for e in refitted)
+    # each refit's whole point, so that it can be run again: its base and its own parameters
+    for e in refitted:
+        assert set(e["values"]) == set(d["calibrated"]) | set(e["fit_coordinates"])
+        assert {k: e["values"][k] for k in e["fit_coordinates"]} == e["fit_coordinates"]
     assert isinstance(d["indistinguishable"], list) and not set(d["indistinguishable"]) & set(d["selected"])
     # the selected effect reaches the floor's neighbourhood; eligible ones that do not are partial
     assert all(e["explains_mismatch"] for e in d["effects"] if e["selected"])

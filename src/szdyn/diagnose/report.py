@@ -66,6 +66,8 @@ UNITS = {"rmse": "rad/s", "heldout_rmse": "rad/s", "noise_floor": "rad/s", "t0":
                           "fit; null: skipped); chosen: the factor whose fit was taken (null: none); "
                           "before/after: values (units listed with them), force (mu_k after over before, 1), "
                           "rmse_fit (rad/s)",
+         "values (effect)": "the refit's base coefficients (units as calibrated) and the candidate's fit "
+                            "parameters (as fit_coordinates)",
          "kept_over (effect)": "later fits of the candidate that fitted better but held out rival_heldout "
                                "times worse, both within rival_floor noise floors: fit (which one), "
                                "rmse_fit and heldout_rmse (rad/s, weighted as the fit)",
@@ -259,6 +261,9 @@ def _to_json(d) -> dict:
             mc, sc = cand.apply(cv)
             item.update({"score": r["explained"], "parameters": {**mc, **sc},
                          "fit_coordinates": cv,
+                         # the refit's whole point (base coefficients too), so that it can be run
+                         # again: the candidate's own parameters alone leave its base unknown
+                         "values": dict(res.values),
                          "std": {k: res.std.get(k, math.nan) for k in cv},
                          "primary": {"name": cand.primary, "value": cand.primary_of(cv),
                                      "std": primary_std(cand, cv, res.std,
