@@ -1249,6 +1249,49 @@ def test_manifest_without_split_holds_out_what_choose_heldout_picks(null, monkey
     assert f"no [split] in the manifest: holding out {held[0]}" in capsys.readouterr().err
 
 
+def test_what_the_reader_left_out_is_said(null, monkeypatch, tmp_path, capsys):
+    """A misspelt optional column is ignored and an exact duplicate row dropped by the reader;
+    diagnose says both (even with --quiet), naming the recording."""
+    import re
+
+    from szdyn.diagnose import diagnosis
+    _, _, out = null
+    data = out.parent / "data"
+    text = (data / "manifest.toml").read_text()
+    names = re.findall(r'file = "([^"]+)"', text)
+    for n in names:
+        lines = (data / n).read_text().splitlines()
+        if n == names[0]:
+            lines = [lines[0] + ",omega_rf"] + [x + ",0" for x in lines[1:4]] + [lines[3] + ",0"] \
+                + [x + ",0" for x in lines[4:]]
+        (tmp_path / n).write_text("\n".join(lines) + "\n")
+    (tmp_path / "m.toml").write_text(text)
+
+    def stop(self, recs):
+        raise UserInputError("stopped after reading")
+    monkeypatch.setattr(diagnosis.Diagnosis, "fit", stop)
+    assert run_main(["diagnose", str(tmp_path / "m.toml"), "--out", str(tmp_path / "o"), "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert f"diagnose: {names[0]}: dropped 1 exact duplicate row(s), the first on line 5" in err
+    assert f"diagnose: {names[0]}: ignored column(s): omega_rf" in err
+    assert not any(f"diagnose: {n}:" in err for n in names[1:])
+
+
+def test_a_single_recording_is_diagnosed_without_a_heldout_one(null, tmp_path):
+    """One recording and no [split]: nothing can be held out; the diagnosis still ends cleanly
+    (it once wrote its files and then failed formatting the missing held-out error)."""
+    _, _, out = null
+    data = out.parent / "data"
+    text = (data / "manifest.toml").read_text()
+    first = text.index("[[recording]]")
+    one = text[first:text.index("[[recording]]", first + 1)].replace('file = "', f'file = "{data}/')
+    (tmp_path / "one.toml").write_text(one)
+    assert run_main(["diagnose", str(tmp_path / "one.toml"), "--out", str(tmp_path / "o"), *SMALL]) == 0
+    d = json.loads((tmp_path / "o" / "diagnosis.json").read_text())
+    assert d["fit"]["before"]["heldout_rmse"] is None and d["fit"]["after"]["heldout_rmse"] is None
+    assert d["verdict"] in ("none", "unexplained", "selected")
+
+
 def test_weighted_diagnosis_of_null_recordings_gives_none(null, tmp_path):
     """Every recording weighted by its own floor (``--weighting always``): the scores stay
     consistent (nothing selected: after == before), and the null recordings still give none."""
@@ -1577,6 +1620,12 @@ def test_a_recording_too_coarse_for_the_speed_window_is_refused():
     coarse = Recording(name="c.csv", t=t / 10, theta_w=0.03 * t, theta_b=0.03 * t)   # 5 Hz
     with pytest.raises(UserInputError, match=r"every 0.2 s .*or less\.$"):
         prepare_one(coarse, default_parameters(), "fit")
+    # shorter than one window (49 samples every 2.05 ms, 0.098 s): enough for the recording's own
+    # filter, but no instant to compare at; refused before any model run
+    ts = 2.05e-3 * np.arange(49)
+    short = Recording(name="s.csv", t=ts, theta_w=3.0 * ts, theta_b=3.0 * ts)
+    with pytest.raises(UserInputError, match=r"'s.csv' lasts 0.0984 s: .* over 0.1 s"):
+        prepare_one(short, default_parameters(), "fit")
 
 
 def test_candidates_that_name_none_are_refused(tmp_path, capsys):

@@ -139,6 +139,9 @@ def test_message_format(ps):
     (dict(n_circles=0), "n_circles"),
     (dict(n_circles=12.5), "n_circles"),
     (dict(n_circles=10_001), "n_circles.*at most 10000"),   # a mistyped N_c, before any memory is taken
+    # integers beyond a float's range (JSON reads them exactly): refused, not an OverflowError
+    (dict(n_circles=10 ** 400), "n_circles.*at most 10000"),
+    (dict(k_c=10 ** 400), "'k_c' must be a finite number, got an integer too large for a float"),
 ])
 def test_cross_checks(ps, changes, key):
     with pytest.raises(ParameterError, match=key):
@@ -215,6 +218,16 @@ def test_json_errors_name_file_and_key(ps, tmp_path):
     bad.write_text(json.dumps(data))
     with pytest.raises(ParameterError, match=r"bad\.json.*'diameter'"):
         ParameterSet.from_json(bad)
+
+    # integers beyond a float's range, which JSON reads exactly: refused by name, no OverflowError
+    for where, key, say in (("geometry", "teeth_per_wrap", "at most 10000"),
+                            ("geometry", "diameter", "must be finite"),
+                            (None, "n_circles", "at most 10000")):
+        data = ps.to_dict()
+        (data[where] if where else data)[key] = 10 ** 400
+        bad.write_text(json.dumps(data))
+        with pytest.raises(ParameterError, match=rf"bad\.json.*'{key}'.*{say}"):
+            ParameterSet.from_json(bad)
 
     bad.write_text("{not json")
     with pytest.raises(ParameterError, match=r"bad\.json.*not valid JSON"):

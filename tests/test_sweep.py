@@ -127,6 +127,9 @@ def test_tiny_sweep_end_to_end(tmp_path):
     ("[axes]\nt_end = [0.2, 100000.0]\n", ["case 1 (t_end = 100000.0)", "GiB of output"]),
     # a mistyped N_c: refused by the cap on it, naming the axis
     ("[axes]\nn_circles = [16, 100000000]\n", ["[axes] 'n_circles'", "at most 10000"]),
+    # a relative tolerance of 1 or more is no tolerance (the CLI's --rtol refuses it too)
+    ("[axes]\n\"integrator.rtol\" = [1e-5, 2.0]\n", ["[axes] 'integrator.rtol'", "below 1"]),
+    ("[axes]\nk_c = [0.01, 10000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000]\n", ["[axes] 'k_c'", "integer too large for a float"]),
 ])
 def test_unknown_keys_and_bad_values_name_the_key_and_suggest(tmp_path, extra, expect):
     spec = write_spec(tmp_path, BASE + extra)
@@ -139,6 +142,13 @@ def test_unknown_keys_and_bad_values_name_the_key_and_suggest(tmp_path, extra, e
     assert not (tmp_path / "out").exists()
 
 
+def test_a_spec_saved_with_a_byte_order_mark_is_read(tmp_path):
+    plain = load_spec(write_spec(tmp_path, BASE))
+    bom = tmp_path / "bom.toml"
+    bom.write_bytes(b"\xef\xbb\xbf" + textwrap.dedent(BASE).encode())
+    assert load_spec(bom).hash == plain.hash
+
+
 @pytest.mark.parametrize("old, new, expect", [
     ("k_c = 0.05", "kc = 0.05", "[base.params] unknown parameter 'kc' (did you mean 'k_c'?)"),
     ("k_c = 0.05", "drive_mode = 1", "[base.params] key 'drive_mode' is set by [base.drive] kind"),
@@ -148,6 +158,7 @@ def test_unknown_keys_and_bad_values_name_the_key_and_suggest(tmp_path, extra, e
     ('kind = "ramp_hold"', 'kind = "ramphold"', "did you mean 'ramp_hold'"),
     ('method = "dopri5"', 'method = "dopri"', "did you mean 'dopri5'"),
     ("rtol = 1e-5", "rtl = 1e-5", "[base.integrator] unknown key 'rtl' (did you mean 'rtol'?)"),
+    ("rtol = 1e-5", "rtol = 2.0", "[base.integrator] key 'rtol' must be a relative tolerance below 1"),
     ("n_circles = 16", "n_circle = 16", "[base] unknown key 'n_circle' (did you mean 'n_circles'?)"),
     ("t_end = 0.2", "t_end = \"1 s\"", "[base] key 't_end' must be a number"),
     # every case would fail, and be retried, at the first step

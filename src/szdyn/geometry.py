@@ -29,11 +29,18 @@ from szdyn.errors import ParameterError
 __all__ = ["BandGeometry"]
 
 
+#: a sanity cap on the teeth per wrap: 10000 on the thesis's 6 cm tube is a 19 um pitch (it has 24)
+MAX_TEETH_PER_WRAP = 10_000
+
+
 def _check_length(name: str, value) -> float:
     """Return ``value`` as float, or raise ParameterError unless it is a finite positive number."""
     if isinstance(value, bool) or not isinstance(value, numbers.Real):
         raise ParameterError(f"band geometry '{name}' must be a real number in m, got {value!r}")
-    value = float(value)
+    try:
+        value = float(value)
+    except OverflowError:       # a JSON integer beyond a float's range
+        value = math.inf
     if not math.isfinite(value):
         raise ParameterError(f"band geometry '{name}' must be finite, got {value!r}")
     if value <= 0.0:
@@ -82,10 +89,14 @@ class BandGeometry:
         ht = _check_length("tooth_height", self.tooth_height)
         dd = _check_length("diameter", self.diameter)
         n = self.teeth_per_wrap
-        if isinstance(n, bool) or not isinstance(n, numbers.Real) or not math.isfinite(float(n)) \
-                or float(n) != int(n) or int(n) <= 0:
+        # (an int is compared as one: a JSON integer may lie beyond a float's range)
+        if isinstance(n, bool) or not isinstance(n, numbers.Real) \
+                or not (isinstance(n, int) or math.isfinite(float(n))) or n != int(n) or int(n) <= 0:
             raise ParameterError(
                 f"band geometry 'teeth_per_wrap' must be a positive integer, got {n!r}")
+        if int(n) > MAX_TEETH_PER_WRAP:
+            raise ParameterError(f"band geometry 'teeth_per_wrap' must be at most {MAX_TEETH_PER_WRAP} "
+                                 f"(the thesis's band has 24), got {n!r}")
         if ht >= hb:
             raise ParameterError(
                 f"band geometry 'tooth_height' must be < band_height = {hb!r} m "

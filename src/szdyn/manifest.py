@@ -76,7 +76,12 @@ def _suggest(name: str, valid) -> str:
 
 
 def _is_real(v) -> bool:
-    return isinstance(v, numbers.Real) and not isinstance(v, bool) and math.isfinite(float(v))
+    if not isinstance(v, numbers.Real) or isinstance(v, bool):
+        return False
+    try:
+        return math.isfinite(float(v))
+    except OverflowError:       # a TOML integer beyond a float's range
+        return False
 
 
 def _table(data: dict, name: str, keys, nm: str) -> dict:
@@ -263,7 +268,12 @@ def read_manifest(path, *, check_files: bool = True) -> Manifest:
         f = r["file"]
         if not isinstance(f, str) or not f.strip():
             raise ManifestError(f"{label}: 'file' must be a non-empty string, got {f!r}")
-        full = (base_dir / f).resolve()
+        try:
+            full = (base_dir / f).resolve()
+            # asked here, so that a name the system refuses (too long, a NUL byte) is said once
+            kind = ("directory" if full.is_dir() else "file" if full.is_file() else None) if check_files else None
+        except (OSError, ValueError) as exc:
+            raise ManifestError(f"{label}: 'file' is not a usable path ({exc})") from None
         if full in seen:
             j, g = seen[full]
             same = f"file '{f}' is listed twice" if g == f else f"'{f}' is the same file as '{g}'"
@@ -288,10 +298,11 @@ def read_manifest(path, *, check_files: bool = True) -> Manifest:
         kt = None
         if "torque_constant" in r:
             kt = _torque_constant(r["torque_constant"], label)
-        if check_files and full.is_dir():
+        if check_files and kind == "directory":
             raise ManifestError(f"{label}: {full} is a directory, expected a CSV file")
-        if check_files and not full.is_file():
-            raise ManifestError(f"{label}: recording file not found: {full}")
+        if check_files and kind is None:
+            what = "not a regular file" if full.exists() else "recording file not found"
+            raise ManifestError(f"{label}: {what}: {full}")
         entries.append(ManifestEntry(file=full, name=f, conditions=cond, torque_constant=kt))
 
     if "motor" in data:

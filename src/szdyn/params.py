@@ -101,14 +101,18 @@ def _fmt(value) -> str:
 def _as_real(name: str, value) -> float:
     # (a JSON true is a Python bool, which is an int: refused, not read as 1)
     if isinstance(value, numbers.Real) and not isinstance(value, bool):
-        return float(value)
+        try:
+            return float(value)
+        except OverflowError:   # a JSON integer beyond a float's range
+            raise ParameterError(f"parameter '{name}' must be a finite number, got an integer too "
+                                 "large for a float") from None
     raise ParameterError(f"parameter '{name}' must be a real number, got {value!r}")
 
 
 def _check_n_circles(n_circles) -> int:
     ok = (not isinstance(n_circles, bool) and isinstance(n_circles, numbers.Real)
-          and math.isfinite(float(n_circles)) and float(n_circles) == int(n_circles)
-          and int(n_circles) > 0)
+          and (isinstance(n_circles, int) or math.isfinite(float(n_circles)))
+          and n_circles == int(n_circles) and int(n_circles) > 0)
     if not ok:
         raise ParameterError(f"parameter 'n_circles' (N_c) must be a positive integer, "
                              f"got {n_circles!r}")

@@ -143,10 +143,14 @@ def load_parameters(args):
     from .params import ParameterSet
 
     if args.params is not None:
-        if args.params.is_dir():
+        try:
+            is_dir, is_file = args.params.is_dir(), args.params.is_file()
+        except (OSError, ValueError) as exc:      # a name the system refuses (too long, a NUL byte)
+            raise UserInputError(f"--params: not a usable path ({exc})") from None
+        if is_dir:
             raise UserInputError(f"--params: {args.params} is a directory; give the parameter JSON file "
                                  "(e.g. OUT/thesis-fig10/params.json)")
-        if not args.params.is_file():
+        if not is_file:
             raise UserInputError(f"--params: no such file: {args.params}")
         params = ParameterSet.from_json(args.params)
     else:

@@ -115,10 +115,21 @@ def _type(v) -> str:
             int: "an integer", float: "a number"}.get(type(v), type(v).__name__)
 
 
+def _integrator_value(key: str, where: str, v) -> float:
+    """A step size or tolerance: > 0, and a relative tolerance below 1 (as ``--rtol``)."""
+    v = _number(where, v, positive=True)
+    if key == "rtol" and not v < 1:
+        raise SpecError(f"{where} must be a relative tolerance below 1 (e.g. 1e-5), got {v!r}")
+    return v
+
+
 def _number(where: str, v, *, positive=False, nonnegative=False, integer=False) -> float:
     if isinstance(v, bool) or not isinstance(v, numbers.Real):
         raise SpecError(f"{where} must be a number, got {_type(v)} {v!r}")
-    v = float(v)
+    try:
+        v = float(v)
+    except OverflowError:       # a TOML integer beyond a float's range
+        raise SpecError(f"{where} must be finite, got an integer too large for a float") from None
     if not math.isfinite(v):
         raise SpecError(f"{where} must be finite, got {v!r}")
     if positive and not v > 0:
@@ -223,7 +234,8 @@ def load_spec(path) -> SweepSpec:
     except OSError as exc:
         raise SpecError(f"{path}: cannot read sweep spec: {exc.strerror or exc}") from None
     try:
-        text = raw.decode("utf-8")
+        # a byte-order mark (editors on Windows) is accepted, as in a manifest
+        text = raw.removeprefix(b"\xef\xbb\xbf").decode("utf-8")
         data = tomllib.loads(text)
     except (UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
         raise SpecError(f"{path}: not valid TOML: {exc}") from None
@@ -319,7 +331,7 @@ def parse_spec(data: dict) -> SweepSpec:
         elif key == "max_steps":
             integrator[key] = int(_number(where, v, positive=True, integer=True))
         else:
-            integrator[key] = _number(where, v, positive=True)
+            integrator[key] = _integrator_value(key, where, v)
 
     base = {"t_end": t_end, "n_circles": ps.n_circles, "overrides": overrides,
             "params": ps.to_dict(), "drive": drive, "integrator": integrator}
@@ -353,7 +365,7 @@ def parse_spec(data: dict) -> SweepSpec:
             elif name.startswith("drive."):
                 _build_drive_checked({**drive, name[6:]: v}, where)
             elif name.startswith("integrator."):
-                _number(f"{where} value", v, positive=True)
+                _integrator_value(name[len("integrator."):], f"{where} value", v)
         except ParameterError as exc:
             raise SpecError(f"{where}: {exc}") from None
         return v

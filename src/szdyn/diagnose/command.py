@@ -173,7 +173,11 @@ def diagnose_command(argv) -> int:
     recs = prepare(man)
     if args.no_current:
         recs = [replace(r, tau=None, torque_constant=None) for r in recs]
-    # said even with --quiet: part of the input is not used
+    # said even with --quiet: part of the input is not used (a misspelt optional column, rows
+    # dropped by the reader)
+    for r in recs:
+        for note in r.rec.notes:
+            print(f"diagnose: {r.name}: {note}", file=sys.stderr)
     unused = [r.name for r in recs if r.rec.current is not None and r.tau is None]
     if unused and not args.no_current:
         print(f"diagnose: current column not used in {', '.join(unused)}: no torque constant in the "
@@ -243,7 +247,10 @@ def diagnose_command(argv) -> int:
     if checkpoint is not None and not args.keep_runs:
         checkpoint.clear()
     sel = ", ".join(js["selected"]) or d.verdict_
-    log(f"done: {sel}; held-out RMSE {js['fit']['before']['heldout_rmse']:.4g} -> "
-        f"{js['fit']['after']['heldout_rmse']:.4g} rad/s; wrote {args.out}/report.md")
+    h0, h1 = js["fit"]["before"]["heldout_rmse"], js["fit"]["after"]["heldout_rmse"]
+    # null (to_json's NaN) when no recording was held out, e.g. a single recording
+    held = (f"held-out RMSE {h0:.4g} -> {h1:.4g} rad/s" if h0 is not None and h1 is not None
+            else "no held-out recording")
+    log(f"done: {sel}; {held}; wrote {args.out}/report.md")
     print(sel)
     return 0

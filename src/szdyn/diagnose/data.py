@@ -104,7 +104,8 @@ def prepare_one(rec: Recording, params: ParameterSet, role: str, *, window_s: fl
     ------
     UserInputError
         If the recording is sampled too coarsely for the speed window (less than one sample in
-        ``window_s``: a time column in ms read as s, for instance).
+        ``window_s``: a time column in ms read as s, for instance), or lasts less than one
+        window.
     """
     med = rec.sampling()["median_dt"]
     if med > window_s * (1 + 1e-9):   # one per window exactly passes, rounding aside
@@ -119,6 +120,12 @@ def prepare_one(rec: Recording, params: ParameterSet, role: str, *, window_s: fl
     drive = Sampled(t=t, omega=ww)
     t0, t1 = float(t[0]), float(t[-1])
     tf = feature_grid(t0, t1, window_s, feature_dt)
+    if tf.size == 0:
+        # shorter than one speed window: its samples can fill the recording's own filter, but no
+        # compared instant lies a half window from both ends (nor can a model run be filtered)
+        raise UserInputError(
+            f"recording '{rec.name}' lasts {t1 - t0:.4g} s: the diagnosis compares speeds smoothed "
+            f"over {window_s:g} s and needs a recording of at least that long.")
     tau = None
     if torque_constant is not None and rec.current is not None:
         tc, cur = smoothed_current(rec, window_s)
