@@ -50,7 +50,7 @@ def test_counter_model_run(tmp_path):
     (["--set", "mc=0.01"], "did you mean"),
     (["--set", "k_c=abc"], "expected a number"),
     (["--set", "k_c"], "NAME=VALUE"),
-    (["--set", "k_c=nan"], "k_c"),
+    (["--set", "k_c=nan"], "--set k_c: expected a finite number"),
     (["--set", "__import__('os')=1"], "unknown"),
     (["--params", "does-not-exist.json"], "does-not-exist.json"),
     # checked before any run starts (these were tracebacks, silent garbage or minutes of waiting)

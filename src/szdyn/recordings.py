@@ -383,7 +383,7 @@ def _check_plausible(cols: dict, lines: list, path) -> None:
     if dt[k] > lim:
         raise RecordingError(
             f"time jumps by {dt[k]:.6g} s (from {cols['t'][k]:.6g} s on line {lines[k]} to "
-            f"{cols['t'][k + 1]:.6g} s), {dt[k] / med:.0f} times the median sample interval "
+            f"{cols['t'][k + 1]:.6g} s), {_ratio(dt[k] / med)} times the median sample interval "
             f"{med:.3g} s: a mistyped time or a logger restart? Fix the time, or split the "
             "recording there", path=path, line=lines[k + 1], column="t")
     for c in ("theta_w", "theta_b"):
@@ -404,6 +404,12 @@ def _check_plausible(cols: dict, lines: list, path) -> None:
             raise RecordingError(f"speed set-point {cols['omega_ref'][k]:.6g} rad/s is beyond "
                                  f"{MAX_SPEED:g} rad/s: a corrupted value, or not in rad/s?",
                                  path=path, line=lines[k], column="omega_ref")
+
+
+def _ratio(r: float) -> str:
+    """A large ratio for a message: whole below a million, else 3 significant digits (a mistyped
+    time of 1e300 s is not worth 300 digits)."""
+    return f"{r:.0f}" if r < 1e6 else f"{r:.3g}"
 
 
 def _check_units(cols: dict, path) -> None:

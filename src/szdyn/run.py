@@ -37,7 +37,9 @@ def _parse_set(items) -> dict[str, float]:
             v = float(value)
         except ValueError:
             raise UserInputError(f"--set {name}: expected a number, got {value!r}") from None
-        if name in out and repr(out[name]) != repr(v):   # (repr: the same nan twice is one value)
+        if not math.isfinite(v):
+            raise UserInputError(f"--set {name}: expected a finite number, got {value!r}")
+        if name in out and out[name] != v:
             raise UserInputError(f"--set {name} is given twice ({out[name]:g} and {v:g}); give it once")
         out[name] = v
     return out
