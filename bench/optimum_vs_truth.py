@@ -54,6 +54,8 @@ from szdyn.manifest import read_manifest  # noqa: E402
 
 BASE = ("k_c", "b_c", "k_imp", "mu_s", "mu_k")
 LINE = (0.25, 0.5, 0.75)
+#: the points also measured on each recording (the line's points only on the fit recordings)
+PER_RECORDING = ("final", "truth", "truth, its effect", "its refit", "its effect, refitted")
 
 
 def truth_coordinates(effect: str, truth: dict) -> dict:
@@ -133,7 +135,7 @@ def refit_values(d: dict, effect: str) -> dict | None:
     """The diagnosis's refit of ``effect`` (base coefficients and the candidate's fit
     parameters, ``values`` of its entry in diagnosis.json), or None where it made none (or the
     file is older than that entry)."""
-    e = next((x for x in d["effects"] if x["id"] == effect), None)
+    e = next((x for x in d.get("effects", []) if x["id"] == effect), None)
     return e.get("values") if e is not None and e.get("refitted") else None
 
 
@@ -151,12 +153,13 @@ def compare(case: Path) -> dict:
            "noise_floor": d["noise_floor"]}
     with FeatureModel(recs, workers=2) as model:
         def measure(phases_of):
-            """RMSEs of every point on the fit recordings, and per recording for final and truth."""
+            """RMSEs of every point on the fit recordings, and per recording for the final model,
+            the truth and the points off the line (PER_RECORDING)."""
             on_fit, per = {}, {recs[i].name: {"role": recs[i].role} for i in all_idx}
             for k, pt in points.items():
                 model.phases = phases_of(pt)
                 on_fit[k] = rms(model.residuals([pt], fit_idx)[0])
-                if k in ("final", "truth", "truth, its effect", "its refit", "its effect, refitted"):
+                if k in PER_RECORDING:
                     for i in all_idx:
                         per[recs[i].name][k] = rms(model.residuals([pt], [i])[0])
             return {"fit_recordings": on_fit, "per_recording": per}

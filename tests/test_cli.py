@@ -53,6 +53,7 @@ def test_counter_model_run(tmp_path):
     (["--set", "k_c=nan"], "--set k_c: expected a finite number"),
     (["--set", "__import__('os')=1"], "unknown"),
     (["--params", "does-not-exist.json"], "does-not-exist.json"),
+    (["--params", "p" * 300 + ".json"], "--params: not a usable path"),
     # checked before any run starts (these were tracebacks, silent garbage or minutes of waiting)
     (["--method", "rk4", "--dt", "3e-4"], "--save-dt 0.001 must be a multiple of --dt 0.0003"),
     (["--save-dt", "1"], "at least 10 are needed"),

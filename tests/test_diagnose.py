@@ -1620,11 +1620,11 @@ def test_a_recording_too_coarse_for_the_speed_window_is_refused():
     coarse = Recording(name="c.csv", t=t / 10, theta_w=0.03 * t, theta_b=0.03 * t)   # 5 Hz
     with pytest.raises(UserInputError, match=r"every 0.2 s .*or less\.$"):
         prepare_one(coarse, default_parameters(), "fit")
-    # shorter than one window (49 samples every 2.05 ms, 0.098 s): enough for the recording's own
-    # filter, but no instant to compare at; refused before any model run
+    # shorter than one window (49 samples every 2.05 ms, 0.098 s): enough samples for the
+    # recording's own filter, but no instant to compare at; refused before any model run
     ts = 2.05e-3 * np.arange(49)
     short = Recording(name="s.csv", t=ts, theta_w=3.0 * ts, theta_b=3.0 * ts)
-    with pytest.raises(UserInputError, match=r"'s.csv' lasts 0.0984 s: .* over 0.1 s"):
+    with pytest.raises(UserInputError, match=r"'s.csv' is too short \(0.0984 s\) for a speed window of 0.1 s"):
         prepare_one(short, default_parameters(), "fit")
 
 

@@ -54,6 +54,7 @@ def test_stroke_one_revolution_is_pitch_and_vectorised():
     ("band_height", 0.0), ("band_height", -1e-3), ("band_height", float("nan")),
     ("tooth_height", -1e-3), ("tooth_height", float("inf")), ("diameter", 0.0),
     ("diameter", float("nan")), ("teeth_per_wrap", 0), ("teeth_per_wrap", 2.5),
+    ("teeth_per_wrap", 10_001), ("diameter", -10 ** 400),
 ])
 def test_invalid_field_named(field, bad):
     kw = dict(band_height=45.72e-3, tooth_height=5e-3, diameter=60e-3, teeth_per_wrap=24)

@@ -66,6 +66,7 @@ BROKEN = [
      "time jumps by 999.998 s (from 0.002 s on line 4 to 1000 s)"),
     # 10 s sampling, then 10001 s: over GAP_MIN_S, and 1000 median intervals exactly is not over
     ("t,theta_w,theta_b\n0,0,0\n10,0,0\n20,0,0\n10020.5,0,0\n", 5, "t", "1000 times the median"),
+    ("t,theta_w,theta_b\n0,0,0\n10,0,0\n20,0,0\n1e300,0,0\n", 5, "t", "1e+299 times the median"),
     # a corrupted angle: 1e300 rad in 1 ms
     ("t,theta_w,theta_b\n0,0,0\n0.001,0,0\n0.002,0,1e300\n", 4, "theta_b", "angle jumps by 1e+300 rad"),
     ("t,theta_w,theta_b,omega_ref\n0,0,0,0\n0.001,0,0,3e7\n", 3, "omega_ref", "speed set-point 3e+07"),

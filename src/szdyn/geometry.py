@@ -40,7 +40,8 @@ def _check_length(name: str, value) -> float:
     try:
         value = float(value)
     except OverflowError:       # a JSON integer beyond a float's range
-        value = math.inf
+        raise ParameterError(f"band geometry '{name}' must be finite, got an integer too large for "
+                             "a float") from None
     if not math.isfinite(value):
         raise ParameterError(f"band geometry '{name}' must be finite, got {value!r}")
     if value <= 0.0:
@@ -69,12 +70,13 @@ class BandGeometry:
     diameter : float
         ``D``, band (tube) diameter (m), > 0, with ``H_B - H_T < pi D``.
     teeth_per_wrap : int
-        ``N``, number of teeth in one wrap, positive integer.
+        ``N``, number of teeth in one wrap, positive integer up to :data:`MAX_TEETH_PER_WRAP`.
 
     Raises
     ------
     ParameterError
-        Naming the offending field when a value is non-finite or non-positive, when
+        Naming the offending field when a value is non-finite or non-positive (or
+        ``teeth_per_wrap`` beyond its cap), when
         ``tooth_height >= band_height`` or when ``band_height - tooth_height >= pi * diameter``
         (no real helix angle).
     """

@@ -147,7 +147,7 @@ def load_parameters(args):
     if args.params is not None:
         try:
             is_dir, is_file = args.params.is_dir(), args.params.is_file()
-        except (OSError, ValueError) as exc:      # a name the system refuses (too long, a NUL byte)
+        except OSError as exc:      # a name the system refuses (too long)
             raise UserInputError(f"--params: not a usable path ({exc})") from None
         if is_dir:
             raise UserInputError(f"--params: {args.params} is a directory; give the parameter JSON file "

@@ -95,6 +95,11 @@ def feature_grid(t0: float, t1: float, window_s: float = WINDOW_S, dt: float = F
     return a + dt * np.arange(max(n, 0))
 
 
+def _too_short(name: str, duration: float, window_s: float) -> str:
+    return (f"recording '{name}' is too short ({duration:.4g} s) for a speed window of {window_s:g} s: "
+            "the diagnosis compares speeds smoothed over that window and needs at least one")
+
+
 def prepare_one(rec: Recording, params: ParameterSet, role: str, *, window_s: float = WINDOW_S,
                 feature_dt: float = FEATURE_DT, torque_constant: float | None = None) -> Prepared:
     """Prepare one recording (see :class:`Prepared`); ``torque_constant`` (N m/A) turns its
@@ -116,16 +121,16 @@ def prepare_one(rec: Recording, params: ParameterSet, role: str, *, window_s: fl
             f"recording '{rec.name}' is sampled every {med:.3g} s (median): the diagnosis compares "
             f"speeds smoothed over {window_s:g} s and needs a sample every {window_s:g} s or "
             f"less.{units}")
+    if rec.duration < window_s:
+        raise UserInputError(_too_short(rec.name, rec.duration, window_s))
     t, ww, wb = speeds(rec, window_s)
     drive = Sampled(t=t, omega=ww)
     t0, t1 = float(t[0]), float(t[-1])
     tf = feature_grid(t0, t1, window_s, feature_dt)
     if tf.size == 0:
-        # shorter than one speed window: its samples can fill the recording's own filter, but no
-        # compared instant lies a half window from both ends (nor can a model run be filtered)
-        raise UserInputError(
-            f"recording '{rec.name}' lasts {t1 - t0:.4g} s: the diagnosis compares speeds smoothed "
-            f"over {window_s:g} s and needs a recording of at least that long.")
+        # (the resampled grid can end a little before the last sample): no compared instant lies
+        # a half window from both ends, nor can a model run be filtered
+        raise UserInputError(_too_short(rec.name, t1 - t0, window_s))
     tau = None
     if torque_constant is not None and rec.current is not None:
         tc, cur = smoothed_current(rec, window_s)
