@@ -259,10 +259,10 @@ MANIFEST_ERRORS = [
      "'./ramp1.csv' is the same file as 'ramp1.csv' ([[recording]] 1 and 2)"),
     ('[[recording]]\nfile = "."\n', "is a directory, expected a CSV file"),
     # names the system refuses, a device that is no file, a load beyond a float's range
-    ('[[recording]]\nfile = "xxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxx.csv"\n', "'file' is not a usable path (["),
+    ('[[recording]]\nfile = "' + "x" * 300 + '.csv"\n', "'file' is not a usable path (["),
     ('[[recording]]\nfile = "a\\u0000.csv"\n', "'file' is not a usable path (embedded null byte)"),
     ('[[recording]]\nfile = "/dev/null"\n', "not a regular file: /dev/null"),
-    ('[[recording]]\nfile = "ramp1.csv"\nload_kg = 10000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000\n', "'load_kg' must be a number > 0"),
+    ('[[recording]]\nfile = "ramp1.csv"\nload_kg = 1' + "0" * 400 + '\n', "'load_kg' must be a number > 0"),
     ('[split]\nheldout = []\n[[recording]]\nfile = "ramp1.csv"\n', "holds out no recording"),
     ('[split]\nheldout = 0\n[[recording]]\nfile = "ramp1.csv"\n', "holds out no recording"),
     ('[model]\nm_b = 2.0\n[[recording]]\nfile = "ramp1.csv"\nload_kg = 1.0\n',
