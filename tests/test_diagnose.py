@@ -1626,6 +1626,12 @@ def test_a_recording_too_coarse_for_the_speed_window_is_refused():
     short = Recording(name="s.csv", t=ts, theta_w=3.0 * ts, theta_b=3.0 * ts)
     with pytest.raises(UserInputError, match=r"'s.csv' is too short \(0.0984 s\) for a speed window of 0.1 s"):
         prepare_one(short, default_parameters(), "fit")
+    # a window long (0.1005 s), but its uniform grid at the median step (3 ms) ends at 0.099 s:
+    # still no instant to compare at
+    te = np.append(3e-3 * np.arange(34), 0.1005)
+    edge = Recording(name="e.csv", t=te, theta_w=3.0 * te, theta_b=3.0 * te)
+    with pytest.raises(UserInputError, match=r"'e.csv' is too short \(0.099 s\) for a speed window of 0.1 s"):
+        prepare_one(edge, default_parameters(), "fit")
 
 
 def test_candidates_that_name_none_are_refused(tmp_path, capsys):

@@ -271,7 +271,9 @@ def read_manifest(path, *, check_files: bool = True) -> Manifest:
         try:
             full = (base_dir / f).resolve()
             # asked here, so that a name the system refuses (too long, a NUL byte) is said once
-            kind = ("directory" if full.is_dir() else "file" if full.is_file() else None) if check_files else None
+            kind = None
+            if check_files:
+                kind = "directory" if full.is_dir() else "file" if full.is_file() else None
         except (OSError, ValueError) as exc:
             raise ManifestError(f"{label}: 'file' is not a usable path ({exc})") from None
         if full in seen:
