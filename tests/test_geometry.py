@@ -63,6 +63,20 @@ def test_invalid_field_named(field, bad):
         BandGeometry(**kw)
 
 
+def test_a_huge_integer_is_not_echoed_in_full():
+    kw = dict(band_height=45.72e-3, tooth_height=5e-3, diameter=60e-3, teeth_per_wrap=-10 ** 400)
+    with pytest.raises(ParameterError) as ei:
+        BandGeometry(**kw)
+    assert str(ei.value) == ("band geometry 'teeth_per_wrap' must be a positive integer, "
+                             "got -100000... (an integer of 401 digits)")
+    kw["teeth_per_wrap"] = 10 ** 15 + 1       # 16 digits: shortened; 15 would be shown whole
+    with pytest.raises(ParameterError, match=r"got 100000\.\.\. \(an integer of 16 digits\)$"):
+        BandGeometry(**kw)
+    kw["teeth_per_wrap"] = 10 ** 14
+    with pytest.raises(ParameterError, match=r"got 100000000000000$"):
+        BandGeometry(**kw)
+
+
 def test_rise_must_be_below_circumference():
     with pytest.raises(ParameterError, match="diameter"):
         BandGeometry(band_height=1.0 + 2.0, tooth_height=1.0, diameter=2 / math.pi, teeth_per_wrap=4)

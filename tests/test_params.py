@@ -140,12 +140,18 @@ def test_message_format(ps):
     (dict(n_circles=12.5), "n_circles"),
     (dict(n_circles=10_001), "n_circles.*at most 10000"),   # a mistyped N_c, before any memory is taken
     # integers beyond a float's range (JSON reads them exactly): refused, not an OverflowError
-    (dict(n_circles=10 ** 400), "n_circles.*at most 10000"),
+    (dict(n_circles=10 ** 400), r"n_circles.*at most 10000.*got 100000\.\.\. \(an integer of 401 digits\)$"),
+    # a mistyped N_r: each step searches every roller's contacts (1e9 would run for hours)
+    (dict(n_rollers=1e9), r"'n_rollers' \(N_r\) must be at most 1000 .*got 1000000000\.0$"),
     (dict(k_c=10 ** 400), "'k_c' must be a finite number, got an integer too large for a float"),
 ])
 def test_cross_checks(ps, changes, key):
     with pytest.raises(ParameterError, match=key):
         ps.replace(**changes)
+
+
+def test_n_rollers_up_to_its_cap(ps):
+    assert ps.replace(n_rollers=1000.0)["n_rollers"] == 1000.0
 
 
 def test_zero_allowed_for_nonnegative(ps):
@@ -226,8 +232,9 @@ def test_json_errors_name_file_and_key(ps, tmp_path):
         data = ps.to_dict()
         (data[where] if where else data)[key] = 10 ** 400
         bad.write_text(json.dumps(data))
-        with pytest.raises(ParameterError, match=rf"bad\.json.*'{key}'.*{say}"):
+        with pytest.raises(ParameterError, match=rf"bad\.json.*'{key}'.*{say}") as ei:
             ParameterSet.from_json(bad)
+        assert len(str(ei.value)) < 400   # the 401 digits are not echoed back
 
     bad.write_text("{not json")
     with pytest.raises(ParameterError, match=r"bad\.json.*not valid JSON"):

@@ -262,9 +262,14 @@ MANIFEST_ERRORS = [
     ('[[recording]]\nfile = "' + "x" * 300 + '.csv"\n', "'file' is not a usable path (["),
     ('[[recording]]\nfile = "a\\u0000.csv"\n', "'file' is not a usable path (embedded null byte)"),
     ('[[recording]]\nfile = "/dev/null"\n', "not a regular file: /dev/null"),
-    ('[[recording]]\nfile = "ramp1.csv"\nload_kg = 1' + "0" * 400 + '\n', "'load_kg' must be a number > 0"),
+    ('[[recording]]\nfile = "ramp1.csv"\nload_kg = 1' + "0" * 400 + '\n',
+     "'load_kg' must be a number > 0 (kg), got 100000... (an integer of 401 digits)"),
     ('[split]\nheldout = []\n[[recording]]\nfile = "ramp1.csv"\n', "holds out no recording"),
     ('[split]\nheldout = 0\n[[recording]]\nfile = "ramp1.csv"\n', "holds out no recording"),
+    # a seed draws only a fractional heldout: beside a list, or alone, it would be silently ignored
+    ('[split]\nseed = 3\n[[recording]]\nfile = "ramp1.csv"\n', "with no 'heldout' it would do nothing"),
+    ('[split]\nheldout = ["ramp1.csv"]\nseed = 3\n[[recording]]\nfile = "ramp1.csv"\n',
+     "with a list of files it would do nothing"),
     ('[model]\nm_b = 2.0\n[[recording]]\nfile = "ramp1.csv"\nload_kg = 1.0\n',
      "[model]: 'm_b' is the load, which 'load_kg' sets in every [[recording]]"),
     # values checked when read, naming the table (not at the recording's turn in a diagnosis)
@@ -299,12 +304,11 @@ def test_manifest_with_a_byte_order_mark_and_m_b_for_the_recordings_without_a_lo
     assert [man.parameters(e)["m_b"] for e in man.entries] == [2.0, 1.0]
 
 
-@pytest.mark.parametrize("split", ["[split]\n", "[split]\nseed = 3\n"])
-def test_a_split_table_without_heldout_leaves_the_choice_to_szdyn(tmp_path, split):
+def test_a_split_table_without_heldout_leaves_the_choice_to_szdyn(tmp_path):
     _write(tmp_path, GOOD)
     _write(tmp_path, GOOD, "ramp2.csv")
     m = tmp_path / "exp.toml"
-    m.write_text(split + '[[recording]]\nfile = "ramp1.csv"\n[[recording]]\nfile = "ramp2.csv"\n')
+    m.write_text('[split]\n[[recording]]\nfile = "ramp1.csv"\n[[recording]]\nfile = "ramp2.csv"\n')
     assert read_manifest(m).heldout == ()
     # a fraction of few recordings holds out at least one
     m.write_text('[split]\nheldout = 0.25\n[[recording]]\nfile = "ramp1.csv"\n'

@@ -22,6 +22,7 @@ from dataclasses import dataclass
 __all__ = [
     "Default", "PARAMETER_DEFAULTS", "GEOMETRY_DEFAULTS", "N_CIRCLES_DEFAULT", "DEFAULT_N_CIRCLES",
     "MAX_N_CIRCLES",
+    "MAX_N_ROLLERS",
     "ALL_DEFAULTS", "PARAMETER_DOCS", "default_values", "default_geometry", "default_parameters",
     "omni_wheel_inertia_estimate",
 ]
@@ -216,6 +217,9 @@ DEFAULT_N_CIRCLES: int = int(N_CIRCLES_DEFAULT.value)
 #: Largest N_c accepted anywhere (a guard, not physics): 100x the thesis's. A run's state, memory
 #: and time grow with N_c; a mistyped 1e8 would otherwise take gigabytes before any message.
 MAX_N_CIRCLES: int = 10_000
+#: Largest N_r accepted (a guard, not physics): the thesis's wheel has 8. Each step searches every
+#: roller's contacts, so a run's time grows with N_r; a mistyped 1e9 would run for hours unheard.
+MAX_N_ROLLERS: int = 1_000
 
 GEOMETRY_DEFAULTS: tuple[Default, ...] = (
     Default("band_height", 45.72e-3, "m", "band height H_B including teeth",

@@ -4,6 +4,16 @@ Kept separate and tiny so every module (and the CLI) can import them without cyc
 """
 
 
+def brief(value) -> str:
+    """``repr(value)``, except that an integer of more than 15 digits is shown by its first digits
+    and its length: an error message does not echo a 400-digit input back in full."""
+    if isinstance(value, int) and not isinstance(value, bool):
+        text = str(abs(value))
+        if len(text) > 15:
+            return f"{'-' if value < 0 else ''}{text[:6]}... (an integer of {len(text)} digits)"
+    return repr(value)
+
+
 class SimulationError(RuntimeError):
     """The integration could not continue (non-finite state, step-size underflow, step limit).
 

@@ -24,7 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from szdyn.errors import ParameterError
+from szdyn.errors import ParameterError, brief
 
 __all__ = ["BandGeometry"]
 
@@ -95,10 +95,10 @@ class BandGeometry:
         if isinstance(n, bool) or not isinstance(n, numbers.Real) \
                 or not (isinstance(n, int) or math.isfinite(float(n))) or n != int(n) or int(n) <= 0:
             raise ParameterError(
-                f"band geometry 'teeth_per_wrap' must be a positive integer, got {n!r}")
+                f"band geometry 'teeth_per_wrap' must be a positive integer, got {brief(n)}")
         if int(n) > MAX_TEETH_PER_WRAP:
             raise ParameterError(f"band geometry 'teeth_per_wrap' must be at most {MAX_TEETH_PER_WRAP} "
-                                 f"(the thesis's band has 24), got {n!r}")
+                                 f"(the thesis's band has 24), got {brief(n)}")
         if ht >= hb:
             raise ParameterError(
                 f"band geometry 'tooth_height' must be < band_height = {hb!r} m "

@@ -31,7 +31,8 @@ did-you-mean suggestion; ``[model]`` names are checked against
 ``szdyn_generated.spiral_zipper.PARAM_NAMES`` and values must be real numbers (not booleans,
 not strings), and the overrides with each recording's conditions must make a valid parameter
 set (checked when read, so the message names the table). ``[split] heldout`` must hold out at
-least one recording and not all. A UTF-8 byte-order mark is accepted. Errors are
+least one recording and not all; ``[split] seed`` is refused unless ``heldout`` is a fraction,
+the only split it draws. A UTF-8 byte-order mark is accepted. Errors are
 :class:`ManifestError` (a :class:`~szdyn.errors.UserInputError`) naming the manifest file and
 the table/key, e.g.
 ``experiments.toml, [[recording]] 2 ('ramp2.csv'): unknown key 'load_k' (did you mean
@@ -49,7 +50,7 @@ from pathlib import Path
 import numpy as np
 
 from szdyn.defaults import MAX_N_CIRCLES
-from szdyn.errors import UserInputError
+from szdyn.errors import UserInputError, brief
 
 __all__ = ["ManifestError", "ManifestEntry", "Manifest", "read_manifest", "RECORDING_KEYS"]
 
@@ -98,7 +99,7 @@ def _table(data: dict, name: str, keys, nm: str) -> dict:
 
 def _torque_constant(v, label: str) -> float:
     if not _is_real(v) or v <= 0:
-        raise ManifestError(f"{label}: 'torque_constant' must be a number > 0 (N m/A), got {v!r}")
+        raise ManifestError(f"{label}: 'torque_constant' must be a number > 0 (N m/A), got {brief(v)}")
     return float(v)
 
 
@@ -285,13 +286,13 @@ def read_manifest(path, *, check_files: bool = True) -> Manifest:
         if "load_kg" in r:
             v = r["load_kg"]
             if not _is_real(v) or v <= 0:
-                raise ManifestError(f"{label}: 'load_kg' must be a number > 0 (kg), got {v!r}")
+                raise ManifestError(f"{label}: 'load_kg' must be a number > 0 (kg), got {brief(v)}")
             cond["load_kg"] = float(v)
         if "n_circles" in r:
             v = r["n_circles"]
             if isinstance(v, bool) or not isinstance(v, int) or not 0 < v <= MAX_N_CIRCLES:
                 raise ManifestError(f"{label}: 'n_circles' must be a positive integer up to {MAX_N_CIRCLES} "
-                                    f"(the thesis uses 100), got {v!r}")
+                                    f"(the thesis uses 100), got {brief(v)}")
             cond["n_circles"] = int(v)
         if "note" in r:
             if not isinstance(r["note"], str):
@@ -331,7 +332,7 @@ def read_manifest(path, *, check_files: bool = True) -> Manifest:
                                     f"valid: {', '.join(PARAM_NAMES)}")
             if not _is_real(v):
                 raise ManifestError(f"{nm}, [model]: parameter '{key}' must be a finite number, "
-                                    f"got {v!r}")
+                                    f"got {brief(v)}")
             model[key] = float(v)
         if "m_b" in model and all("load_kg" in e.conditions for e in entries):
             # [model] m_b still sets the load of recordings without load_kg; beside a load_kg
@@ -359,7 +360,13 @@ def read_manifest(path, *, check_files: bool = True) -> Manifest:
         h = tbl.get("heldout", [])
         seed = tbl.get("seed", 0)
         if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
-            raise ManifestError(f"{nm}, [split]: 'seed' must be a non-negative integer, got {seed!r}")
+            raise ManifestError(f"{nm}, [split]: 'seed' must be a non-negative integer, got {brief(seed)}")
+        if "seed" in tbl and ("heldout" not in tbl or isinstance(h, list)):
+            # the seed draws the recordings a fraction holds out; anything else would ignore it
+            what = "a list of files" if "heldout" in tbl else "no 'heldout'"
+            raise ManifestError(f"{nm}, [split]: 'seed' only draws which recordings a fractional "
+                                f"'heldout' holds out (e.g. heldout = 0.3); with {what} it would do "
+                                "nothing: remove it")
         names = [e.name for e in entries]
         if isinstance(h, list):
             for x in h:

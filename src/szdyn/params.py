@@ -25,8 +25,8 @@ import numpy as np
 
 from .io import write_json
 
-from szdyn.defaults import MAX_N_CIRCLES
-from szdyn.errors import ParameterError
+from szdyn.defaults import MAX_N_CIRCLES, MAX_N_ROLLERS
+from szdyn.errors import ParameterError, brief
 from szdyn.geometry import BandGeometry
 
 __all__ = ["ParameterSet", "param_names", "param_index", "validate"]
@@ -115,10 +115,10 @@ def _check_n_circles(n_circles) -> int:
           and n_circles == int(n_circles) and int(n_circles) > 0)
     if not ok:
         raise ParameterError(f"parameter 'n_circles' (N_c) must be a positive integer, "
-                             f"got {n_circles!r}")
+                             f"got {brief(n_circles)}")
     if int(n_circles) > MAX_N_CIRCLES:
         raise ParameterError(f"parameter 'n_circles' (N_c) must be at most {MAX_N_CIRCLES} (the thesis uses "
-                             f"100; a run's memory and time grow with N_c), got {n_circles!r}")
+                             f"100; a run's memory and time grow with N_c), got {brief(n_circles)}")
     return int(n_circles)
 
 
@@ -146,7 +146,8 @@ def validate(values: Mapping[str, float], n_circles: int, names=None) -> dict[st
         Naming the parameter (and its unit and value) on the first problem found: unknown or
         missing name, non-real or non-finite value, bound violated (positive masses, inertias,
         lengths, ``n_imp``, ``gamma``, ``g``; non-negative stiffness, damping, friction
-        coefficients and ``m_b``; ``n_rollers`` and ``N_c`` positive integers; ``impact_clamp``
+        coefficients and ``m_b``; ``n_rollers`` and ``N_c`` positive integers, at most
+        ``MAX_N_ROLLERS`` and ``MAX_N_CIRCLES``; ``impact_clamp``
         and ``drive_mode`` in {0, 1}), ``mu_k > mu_s``, or geometric inconsistency
         (``d < R_bo``, ``R_w + t_r < R_bo``, ``t_c < d`` are required).
     """
@@ -180,6 +181,9 @@ def validate(values: Mapping[str, float], n_circles: int, names=None) -> dict[st
     def has(*ns):
         return all(n in out for n in ns)
 
+    if has("n_rollers") and out["n_rollers"] > MAX_N_ROLLERS:
+        raise ParameterError(f"parameter 'n_rollers' (N_r) must be at most {MAX_N_ROLLERS} (the thesis's "
+                             f"wheel has 8; a run's time grows with N_r), got {_fmt(out['n_rollers'])}")
     if has("mu_s", "mu_k") and out["mu_k"] > out["mu_s"]:
         raise ParameterError(f"parameter 'mu_k' must be <= mu_s = {out['mu_s']!r}, "
                              f"got {out['mu_k']!r}")
