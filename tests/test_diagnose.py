@@ -1141,6 +1141,7 @@ def test_diagnosis_json_schema(viscous):
         assert set(m) >= {"recording", "t0", "t1", "regime", "score"}
     assert set(d["calibrated"]) == {"k_c", "b_c", "k_imp", "mu_s", "mu_k"}
     assert d["fit"]["before"]["heldout_rmse"] > 0 and d["fit"]["after"]["heldout_rmse"] > 0
+    assert d["final_failed_on"] == []   # every run of the updated model went through
     # what the reader needs to judge the fits: how each ended, and rivals that fit as well
     assert d["calibration_status"].split(" after ")[0] in ("converged", "stopped by its budget")
     refitted = [e for e in d["effects"] if e["refitted"]]
@@ -1290,6 +1291,50 @@ def test_a_single_recording_is_diagnosed_without_a_heldout_one(null, tmp_path):
     d = json.loads((tmp_path / "o" / "diagnosis.json").read_text())
     assert d["fit"]["before"]["heldout_rmse"] is None and d["fit"]["after"]["heldout_rmse"] is None
     assert d["verdict"] in ("none", "unexplained", "selected")
+
+
+def test_an_out_holding_files_no_diagnosis_wrote_is_refused_before_the_fit(null, tmp_path, capsys):
+    """--out the data folder, which holds the user's own params.json and report.md: refused before
+    any run, and nothing there is touched."""
+    _, _, out = null
+    data = out.parent / "data"
+    for f in data.glob("*.csv"):
+        (tmp_path / f.name).write_bytes(f.read_bytes())
+    (tmp_path / "m.toml").write_text((data / "manifest.toml").read_text())
+    mine = {"params.json": '{"mine": 1}', "report.md": "my notes"}
+    for k, v in mine.items():
+        (tmp_path / k).write_text(v)
+    assert run_main(["diagnose", str(tmp_path / "m.toml"), "--out", str(tmp_path), "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert (f"holds params.json, report.md, which no diagnosis wrote there (no diagnosis.json beside them)"
+            in err) and "Traceback" not in err
+    assert all((tmp_path / k).read_text() == v for k, v in mine.items())
+    assert not (tmp_path / "checkpoint").exists()
+
+
+def test_recordings_the_final_model_cannot_run_are_said(null, tmp_path, monkeypatch, capsys):
+    """Every run at 1 kg fails (as one far beyond what the model integrates would): the diagnosis
+    still ends, and diagnosis.json, the report and stderr name those recordings; before, only the
+    cost line's count of failed runs showed it."""
+    from szdyn.diagnose import engine
+
+    _, _, out = null
+    data = out.parent / "data"
+    real = engine._simulate
+    monkeypatch.setattr(engine, "_simulate", lambda task: None if task[0]["values"]["m_b"] == 1.0 else real(task))
+    for f in data.glob("*.csv"):
+        (tmp_path / f.name).write_bytes(f.read_bytes())
+    (tmp_path / "m.toml").write_text((data / "manifest.toml").read_text())
+    # one process: the patched worker runs in this one
+    assert run_main(["diagnose", str(tmp_path / "m.toml"), "--out", str(tmp_path / "o"), *SMALL,
+                     "--workers", "1", "--no-next-recording"]) == 0
+    d = json.loads((tmp_path / "o" / "diagnosis.json").read_text())
+    heavy = sorted(r["name"] for r in d["recordings"] if r["load_kg"] == 1.0)
+    assert heavy and sorted(d["final_failed_on"]) == heavy and d["cost"]["failed_runs"] > 0
+    which = "updated" if d["selected"] else "calibrated"
+    assert f"**The {which} model's run failed on**" in (tmp_path / "o" / "report.md").read_text()
+    err = capsys.readouterr().err
+    assert f"diagnose: The {which} model's run failed on" in err and all(n in err for n in heavy)
 
 
 def test_weighted_diagnosis_of_null_recordings_gives_none(null, tmp_path):

@@ -7,7 +7,7 @@ from pathlib import Path
 import pytest
 
 from szdyn.errors import UserInputError
-from szdyn.io import staged_output
+from szdyn.io import make_output_dir, staged_output
 
 
 def test_staged_files_are_moved_in_with_last_ones_last_and_old_files_kept(tmp_path, monkeypatch):
@@ -116,3 +116,25 @@ def test_a_failing_block_moves_nothing_and_a_file_dest_is_refused(tmp_path):
         with pytest.raises(UserInputError, match="f is a file"):
             with staged_output(d):
                 pass
+
+
+@pytest.mark.parametrize("via", ["staged_output", "make_output_dir"])
+def test_an_output_directory_the_system_refuses_is_a_clear_error_and_leaves_nothing(tmp_path, via):
+    """A name over the file system's 255-byte limit: a UserInputError naming the directory, not
+    an OSError traceback, and the directories made above it on the way are removed again."""
+    dest = tmp_path / "a" / ("x" * 300) / "b"
+    with pytest.raises(UserInputError, match=r"cannot create the output directory \(File name too long\)"):
+        if via == "make_output_dir":
+            make_output_dir(dest)
+        else:
+            with staged_output(dest):
+                pass
+    assert list(tmp_path.iterdir()) == []   # tmp_path/a, made on the way, is gone
+
+
+def test_make_output_dir_says_what_it_made(tmp_path):
+    assert make_output_dir(tmp_path / "a" / "b") == [tmp_path / "a" / "b", tmp_path / "a"]
+    assert make_output_dir(tmp_path / "a") == []
+    (tmp_path / "f").write_text("")
+    with pytest.raises(UserInputError, match=r"f is a file, not a directory"):
+        make_output_dir(tmp_path / "f" / "g")

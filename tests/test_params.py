@@ -219,6 +219,18 @@ def test_json_errors_name_file_and_key(ps, tmp_path):
     with pytest.raises(ParameterError, match=r"bad\.json.*'mu_kk'.*did you mean 'mu_k'"):
         ParameterSet.from_json(bad)
 
+    # a null geometry is refused (it once meant the default silently); leaving it out is the default
+    for geo, say in ((None, "got null"), ([1, 2], "got list")):
+        data = ps.to_dict()
+        data["geometry"] = geo
+        bad.write_text(json.dumps(data))
+        with pytest.raises(ParameterError, match=rf"bad\.json.*key 'geometry' must be a mapping.*{say}$"):
+            ParameterSet.from_json(bad)
+    data = ps.to_dict()
+    del data["geometry"]
+    bad.write_text(json.dumps(data))
+    assert ParameterSet.from_json(bad).geometry == ps.geometry
+
     data = ps.to_dict()
     data["geometry"]["diameter"] = -1.0
     bad.write_text(json.dumps(data))

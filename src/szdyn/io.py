@@ -2,6 +2,7 @@
 set of files written elsewhere and moved in only once all of them are made."""
 from __future__ import annotations
 
+import errno
 import json
 import os
 import shutil
@@ -63,6 +64,48 @@ def write_csv(path, columns: Mapping[str, np.ndarray]) -> Path:
     return atomic_write_text(path, "\n".join(lines) + "\n" + body + "\n")
 
 
+def make_output_dir(dest) -> list:
+    """Create the output directory ``dest`` and the missing ones above it.
+
+    Returns
+    -------
+    list of Path
+        The directories this call created, innermost first (for :func:`_remove_empty` after a
+        failure).
+
+    Raises
+    ------
+    UserInputError
+        ``dest`` or a directory above it is a file, or ``dest`` cannot be created (no
+        permission, a read-only or virtual file system, a name too long); nothing is left
+        created.
+    """
+    from .errors import UserInputError
+
+    dest = Path(dest)
+    made = []
+    try:
+        for p in (dest, *dest.parents):   # (mkdir would fail on a file anywhere above, as a traceback)
+            if p.exists() and not p.is_dir():
+                raise UserInputError(f"{p} is a file, not a directory")
+        made = [p for p in (dest, *dest.parents) if not p.exists()]   # innermost first
+        dest.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        _remove_empty(made)
+        raise UserInputError(f"{dest}: cannot create the output directory ({exc.strerror or exc})") from None
+    return made
+
+
+def _remove_empty(made) -> None:
+    """Remove the directories ``made`` (innermost first) that exist and are empty."""
+    for p in made:
+        try:
+            p.rmdir()
+        except OSError as exc:
+            if exc.errno not in (errno.ENOENT, errno.ENAMETOOLONG):   # one never made: go on
+                break
+
+
 @contextmanager
 def staged_output(dest, last: Sequence[str] = (), owns: Sequence[str] = ()) -> Iterator[Path]:
     """Write a set of files into a staging directory inside ``dest``; move them in at the end.
@@ -95,17 +138,18 @@ def staged_output(dest, last: Sequence[str] = (), owns: Sequence[str] = ()) -> I
     ------
     UserInputError
         ``dest`` (or a directory above it) is a file, or a new file's place in it is taken by a directory (or a
-        directory's by a file). Checked before anything is moved, so nothing is mixed.
+        directory's by a file). Checked before anything is moved, so nothing is mixed. Also when
+        ``dest`` cannot be created or written in (permissions, a name too long).
     """
     from .errors import UserInputError
 
     dest = Path(dest)
-    for p in (dest, *dest.parents):   # (mkdir would fail on a file anywhere above, as a traceback)
-        if p.exists() and not p.is_dir():
-            raise UserInputError(f"{p} is a file, not a directory")
-    made = [p for p in (dest, *dest.parents) if not p.exists()]   # innermost first
-    dest.mkdir(parents=True, exist_ok=True)
-    stage = Path(tempfile.mkdtemp(prefix=".partial-", dir=dest))
+    made = make_output_dir(dest)
+    try:
+        stage = Path(tempfile.mkdtemp(prefix=".partial-", dir=dest))
+    except OSError as exc:   # a directory one may not write in
+        _remove_empty(made)
+        raise UserInputError(f"{dest}: cannot write in the output directory ({exc.strerror or exc})") from None
     done = False
     try:
         yield stage
@@ -137,8 +181,4 @@ def staged_output(dest, last: Sequence[str] = (), owns: Sequence[str] = ()) -> I
         shutil.rmtree(stage, ignore_errors=True)
         if not done:
             # a failed first run leaves no empty output directory behind (what was there stays)
-            for p in made:
-                try:
-                    p.rmdir()
-                except OSError:
-                    break
+            _remove_empty(made)

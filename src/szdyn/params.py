@@ -425,12 +425,15 @@ class ParameterSet:
                 values[n] = dflt[n]
             warnings.warn((f"{source}: " if source else "") + "parameters not given, taken from "
                           "szdyn.defaults: " + ", ".join(absent), stacklevel=2)
-        geo = data.get("geometry")
-        if geo is None:
+        if "geometry" not in data:
             geometry = defaults.default_geometry()
         else:
+            geo = data["geometry"]
             if not isinstance(geo, Mapping):
-                raise ParameterError("key 'geometry' must be a mapping")
+                # (a JSON null too: leaving the key out is how the default geometry is asked for)
+                raise ParameterError("key 'geometry' must be a mapping of band_height, tooth_height, "
+                                     "diameter and teeth_per_wrap (leave it out for the default "
+                                     f"geometry), got {'null' if geo is None else type(geo).__name__}")
             fields = ("band_height", "tooth_height", "diameter", "teeth_per_wrap")
             for key in geo:
                 if key not in fields:

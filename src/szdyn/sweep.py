@@ -62,7 +62,7 @@ import numpy as np
 
 from .cli import Parser
 from .errors import ParameterError, SimulationError, UserInputError, interrupted
-from .io import atomic_write_bytes, atomic_write_text, write_json
+from .io import atomic_write_bytes, atomic_write_text, make_output_dir, write_json
 from .metrics import Metric, evaluate_metrics, metric_unit
 from .processes import worker_init
 from .sweep_spec import SweepSpec, build_drive, load_spec, spec_diff
@@ -494,9 +494,10 @@ def run_sweep(spec, out, *, workers: int | None = None, dask_client=None,
         raise UserInputError(f"--workers must be >= 1, got {workers}")
     if max_cases is not None and max_cases < 0:
         raise UserInputError(f"--max-cases must be >= 0, got {max_cases}")
-    if out.exists() and not out.is_dir():
-        raise UserInputError(f"--out {out} exists and is not a directory")
-    out.mkdir(parents=True, exist_ok=True)
+    try:
+        make_output_dir(out)
+    except UserInputError as exc:
+        raise UserInputError(f"--out: {exc}") from None
     t_start = time.perf_counter()
     with _DirLock(out):
         model_changed = _prepare_dir(out, spec)

@@ -693,7 +693,11 @@ def synth_command(argv) -> int:
     if args.dt > period / 4:
         raise SynthError(f"synth: --dt must be <= {period / 4:g} s (a quarter of the logger's "
                          f"sample period {period:g} s), got {args.dt:g}")
-    if args.out.exists() and not args.out.is_dir():
+    try:
+        is_file = args.out.exists() and not args.out.is_dir()
+    except OSError as exc:   # e.g. a name too long
+        raise SynthError(f"synth: --out {args.out}: not a usable directory ({exc.strerror or exc})") from None
+    if is_file:
         raise SynthError(f"synth: --out {args.out} is a file, expected a directory")
     clash = _existing_outputs(args.out)
     if clash and not args.overwrite:

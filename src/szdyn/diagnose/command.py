@@ -123,7 +123,7 @@ def diagnose_command(argv) -> int:
     from .data import prepare
     from .checkpoint import CHECKPOINT_DIR, RunCheckpoint, fingerprint
     from .diagnosis import Diagnosis
-    from .report import write_report
+    from .report import OUTPUT_FILES, failed_md, write_report
     from .split import choose_heldout, with_heldout
 
     args = _build_parser().parse_args(argv)
@@ -212,6 +212,13 @@ def diagnose_command(argv) -> int:
     except OSError as exc:
         raise UserInputError(f"diagnose: --out {args.out}: cannot create the output directory "
                              f"({exc.strerror or exc})") from None
+    # the diagnosis replaces its own files (report.md, params.json, ...) in --out; files of those
+    # names without a diagnosis.json beside them are someone else's (e.g. --out the data folder)
+    foreign = [f for f in OUTPUT_FILES if (args.out / f).exists()]
+    if foreign and not (args.out / "diagnosis.json").is_file():
+        raise UserInputError(f"diagnose: --out {args.out} holds {', '.join(foreign)}, which no diagnosis "
+                             "wrote there (no diagnosis.json beside them); the diagnosis would replace "
+                             "them: choose another --out, or move them away")
     checkpoint = None if args.no_checkpoint else RunCheckpoint(
         args.out / CHECKPOINT_DIR, fingerprint(recs), warn=lambda m: print(f"diagnose: {m}", file=sys.stderr))
     d = Diagnosis(cands, shortlist=args.shortlist, nominate_r2=args.nominate_r2,
@@ -251,6 +258,10 @@ def diagnose_command(argv) -> int:
     # null (to_json's NaN) when no recording was held out, e.g. a single recording
     held = (f"held-out RMSE {h0:.4g} -> {h1:.4g} rad/s" if h0 is not None and h1 is not None
             else "no held-out recording")
+    if js.get("final_failed_on"):
+        # said even with --quiet: the figures for these recordings are no fit
+        print("diagnose: " + failed_md(js["final_failed_on"], js["selected"]).replace("**", "").replace("`", ""),
+              file=sys.stderr, flush=True)
     log(f"done: {sel}; {held}; wrote {args.out}/report.md")
     print(sel)
     return 0

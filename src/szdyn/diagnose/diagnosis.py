@@ -194,6 +194,12 @@ def phases_on(model, which) -> dict:
     return {i: model.phases[i] for i in which if i in model.phases}
 
 
+def failed_on(model, point, which) -> list:
+    """Names of the recordings ``which`` (indices into ``model.recordings``) whose run at
+    ``point`` (``(model_changes, sensor_changes)``) failed with every integrator tried."""
+    return [model.recordings[i].name for i in which if model.any_failed([point], [i])]
+
+
 def probe_additions(probing, shortlist, rule: SelectionRule, *, rss_base: float, n_fit: int) -> list:
     """Entries of the probe screening that go on the refit shortlist.
 
@@ -491,6 +497,10 @@ class Diagnosis:
         ``"none"``, ``"selected"`` or ``"unexplained"``.
     final_ : FitResult
         The updated model (the selected candidate's refit, else the calibrated base).
+    final_failed_ : list of str
+        Recordings (fit or held out) on which the final model's own run failed with every
+        integrator tried; its band speed there is taken as zero (a band at rest), so its figures for
+        them are no fit. Empty when every run went through.
     heldout_ : dict
         ``before``/``after`` held-out RMSE (rad/s), overall and per recording.
     heldout_beyond_floor_ : dict of str -> float
@@ -2176,6 +2186,10 @@ class Diagnosis:
             self.heldout_beyond_floor_ = {k: v / self.floor_ for k, v in after.items()
                                           if self.rule.mismatch(v, self.floor_)}
             self.final_speed_ = dict(zip(all_idx, model.speeds([fh.point(self.final_.x)], all_idx)[0]))
+            # a run that failed with both integrators stands for a band at rest (zeros): where the
+            # final model's own run failed, its figures for that recording are no fit, and the
+            # report says so instead of leaving it to the cost line's count
+            self.final_failed_ = failed_on(model, fh.point(self.final_.x), all_idx)
             if self.torque_ is not None and self.torque_["used"]:
                 # the torque on its own, in N m, before (calibrated base) and after
                 pts = {"before": base_h.point(cal.x), "after": fh.point(self.final_.x)}

@@ -339,6 +339,8 @@ def _to_json(d) -> dict:
                         "t0": r.t0, "t1": r.t1, "samples": len(r.rec)} for r in d.recordings_],
         "compared": COMPARED,
         "units": UNITS,
+        # recordings on which the final model's own run failed (its band speed taken as zero)
+        "final_failed_on": list(getattr(d, "final_failed_", [])),
         "cost": {"seconds": d.timings_, "model_runs": d.n_runs_, "failed_runs": d.n_failed_,
                  # runs loaded from a checkpoint of an earlier run, interrupted or kept (not in
                  # model_runs or seconds)
@@ -670,6 +672,15 @@ def _refits_md(d) -> str:
             f"too when the provisional winner left the fit above {d.rule.rival_floor:g}x the floor).")
 
 
+def failed_md(names, selected) -> str:
+    """The warning for recordings on which the final model's own run failed (markdown)."""
+    which = "updated" if selected else "calibrated"
+    return (f"**The {which} model's run failed on** " + ", ".join(f"`{k}`" for k in names)
+            + " with every integrator it tries (dopri5 the last): its band speed there is taken as zero, a "
+            "band at rest, so its figures for these recordings are no fit. Their conditions (load_kg, "
+            "speeds) or the parameters may lie beyond what the model can integrate.")
+
+
 def _report_md(d, js) -> str:
     L = ["# szdyn diagnosis", ""]
     v = d.verdict_
@@ -706,6 +717,8 @@ def _report_md(d, js) -> str:
                 "calibrated model missed by more. Something else, or another form of it, is missing "
                 "too; the calibration may also have settled in a wrong valley (the updated model is "
                 "the calibrated base).", ""]
+    if js["final_failed_on"]:
+        L += [failed_md(js["final_failed_on"], d.selected_), ""]
     if d.heldout_beyond_floor_:
         L += ["**Held-out recordings not reproduced:** "
               + ", ".join(f"`{k}` ({r:.1f}x the floor)" for k, r in d.heldout_beyond_floor_.items())
