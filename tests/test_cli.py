@@ -63,6 +63,12 @@ def test_counter_model_run(tmp_path):
     (["--set", "k_c=1", "--set", "k_c=2"], "given twice"),
     (["--set", "n_circles=8"], "disagree"),
     (["--set", "geometry=1"], "--params file"),
+    # once a traceback (OverflowError, numba TypingError, OSError) or hours of waiting
+    (["--workers", "99999999999"], "expected at most 1024 processes"),
+    (["--method", "rk4", "--dt", "1e-9"], "fixed steps over the"),
+    (["--method", "heun", "--dt", "1e-300"], "fixed steps over the"),
+    (["--set", "n_rollers=1e9"], "at most 1000"),
+    (["--out", "/tmp/" + "x" * 300], "cannot create the output directory (file name too long)"),
 ])
 def test_bad_input_is_a_one_line_error(argv, expect, capsys, tmp_path):
     code = main(["--out", str(tmp_path)] + SMALL + argv)

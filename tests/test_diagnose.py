@@ -1069,11 +1069,12 @@ def test_diagnose_nomination_threshold_outside_0_1_is_a_clear_error(tmp_path, ca
     assert "--nominate-r2" in err and "Traceback" not in err
 
 
-@pytest.mark.parametrize("flag", ["--polish-jac", "--rivals", "--unstall", "--phase-steps"])
-def test_diagnose_negative_budget_is_a_clear_error(tmp_path, capsys, flag):
+@pytest.mark.parametrize("flag, value", [("--polish-jac", "-1"), ("--rivals", "-1"), ("--unstall", "-1"),
+                                         ("--phase-steps", "-1"), ("--workers", "99999999999")])
+def test_diagnose_negative_budget_is_a_clear_error(tmp_path, capsys, flag, value):
     m = tmp_path / "m.toml"
     m.write_text("")
-    rc = run_main(["diagnose", str(m), "--out", str(tmp_path / "o"), flag, "-1"])
+    rc = run_main(["diagnose", str(m), "--out", str(tmp_path / "o"), flag, value])
     assert rc == 2
     err = capsys.readouterr().err
     assert flag in err and "Traceback" not in err

@@ -47,6 +47,10 @@ def test_profile_knots():
                                [[0, 0], [3, 6], [4, 6]])
     np.testing.assert_allclose(np.column_stack(Trapezoid(2.0, 6.0, 1.0, a_down=3.0).knots()),
                                [[0, 0], [3, 6], [4, 6], [6, 0]])
+    # a hold that rounding makes zero long is no hold (it once divided by zero, with a warning)
+    for hold in (1e-300, 1e-17):
+        np.testing.assert_array_equal(np.column_stack(RampHold(2.0, 3.0, hold).knots()), [[0, 0], [3, 6]])
+        np.testing.assert_array_equal(np.column_stack(Trapezoid(2.0, 6.0, hold).knots()), [[0, 0], [3, 6], [6, 0]])
     assert Ramp(2.0, 3.0).mode == "speed" and Torque([0.0], [1.0]).mode == "torque"
     assert Torque([0.0], [1.0]).drive_mode == 1 and Sampled([0.0], [1.0]).drive_mode == 0
 
@@ -115,6 +119,9 @@ def test_angle_is_integral_of_speed(profile):
     (lambda: Torque(t=[0, 1], torque=[0, np.nan]), r"Torque: torque must be finite"),
     (lambda: Ramp(1.0, 1.0).to_array(angle0=np.nan), r"Ramp: angle0 must be finite"),
     (lambda: array_to_knots([2.0, 0.0, 1.0]), r"drive"),
+    # a ramp down that takes no time in floating point: a slope divided by zero before
+    (lambda: Trapezoid(a=1e300, omega_max=3.0, t_hold=1.0).knots(),
+     r"Trapezoid: the speed changes from 3 to 0 rad/s in no time at t = 1 s"),
 ])
 def test_bad_inputs_name_the_argument(make, match):
     with pytest.raises(ValueError, match=match):

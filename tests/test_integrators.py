@@ -271,3 +271,12 @@ def test_check_sampling_limits_and_its_boundaries():
     check_sampling("dopri5", 1e-5, 1e-3, (rows - 1) * 1e-3, n_states=205)
     with pytest.raises(ValueError, match="GiB of output"):
         check_sampling("dopri5", 1e-5, 1e-3, (rows + 2) * 1e-3, n_states=205)
+    # the fixed-step limit: 1e9 steps pass, 1.1e9 do not; dopri5 has
+    # its own step budget, and dt=1e-300 (which would not compile) is refused by the same rule
+    check_sampling("rk4", 1e-6, 1e-3, 1000.0)
+    with pytest.raises(ValueError, match=r"dt=1e-06 s makes 1.1e\+09 fixed steps over the 1100 s run, more "
+                                         r"than 1e\+09 \(hours of work a run\)"):
+        check_sampling("rk4", 1e-6, 1e-3, 1100.0)
+    check_sampling("dopri5", 1e-9, 1e-3, 1100.0)
+    with pytest.raises(ValueError, match="fixed steps"):
+        check_sampling("heun", 1e-300, 1e-3, 1.0)

@@ -105,6 +105,15 @@ def test_tiny_sweep_end_to_end(tmp_path):
     assert (out / "cases.csv").read_bytes() == before
 
 
+def test_options_beyond_their_range_are_refused_before_any_case(tmp_path):
+    spec = write_spec(tmp_path, BASE)
+    for argv, say in ((["--workers", "99999999999"], "--workers must be in 1..1024"),   # once an OverflowError
+                      (["--out", str(tmp_path / ("x" * 300))], "--out: .*cannot create the output directory")):
+        with pytest.raises(UserInputError, match=say):
+            sweep_command([str(spec), "--out", str(tmp_path / "out"), "--quiet", *argv])
+    assert sorted(p.name for p in tmp_path.iterdir()) == [spec.name]
+
+
 # --------------------------------------------------------------------------- spec errors
 @pytest.mark.parametrize("extra, expect", [
     ("[axis]\nk_c = [1.0]\n", ["[top level]", "'axis'", "did you mean 'axes'"]),

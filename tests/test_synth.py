@@ -230,9 +230,18 @@ def test_unknown_effect_names_it_and_suggests(tmp_path):
     (["--out", "X", "--dt", "1e-3"], "--dt must be <= 0.0005 s"),
     (["--out", "X", "--n-circles", "100000000"], "up to 10000"),
     (["--out", "X", "--dt", "-1e-4"], "--dt must be > 0"),          # a negative in e-notation is a value
+    # once tracebacks or lost files: a step that does not divide the 0.1 ms save step or would
+    # not compile, loads of one file name, an empty load, a perturbation beyond exp's range,
+    # a directory the system refuses
+    (["--out", "X", "--dt", "3e-5"], r"the truth's RK4 step: save_dt=0.0001 must be a multiple of dt=3e-05"),
+    (["--out", "X", "--dt", "1e-300"], r"the truth's RK4 step: dt=1e-300 s makes .* fixed steps"),
+    (["--out", "X", "--loads", "1,1.0000001"], r"distinct in their first 6 significant digits .*load1kg_"),
+    (["--out", "X", "--loads", "0.5,,1"], "an empty entry in '0.5,,1'"),
+    (["--out", "X", "--perturb", "1000"], r"perturb .* must be in \[0, 1\], got 1000.0"),
+    (["--out", "X" + "x" * 300], "not a usable directory \\(File name too long\\)"),
 ])
 def test_cli_mistakes_are_user_errors(tmp_path, argv, match):
-    argv = [str(tmp_path / a) if a == "X" else a for a in argv]
+    argv = [str(tmp_path / a) if a.startswith("X") else a for a in argv]
     with pytest.raises(UserInputError, match=match):
         synth_command(argv + ["--quick", "--quiet"])
 

@@ -239,7 +239,21 @@ class RampHold(_Profile):
         w = self.a * self.t_ramp
         if self.t_hold == 0.0:
             return np.array([0.0, self.t_ramp]), np.array([0.0, w])
-        return (np.array([0.0, self.t_ramp, self.t_ramp + self.t_hold]), np.array([0.0, w, w]))
+        return _distinct_times(np.array([0.0, self.t_ramp, self.t_ramp + self.t_hold]), np.array([0.0, w, w]),
+                               "RampHold")
+
+
+def _distinct_times(t, v, cls: str):
+    """Knots ``(t, v)`` without a hold that rounding made zero long (1e-300 s after a 1 s ramp):
+    two knots at one time with one speed are one knot. Two at one time with two speeds (a ramp so
+    steep that it takes no time in floating point) would divide by zero in the slope: refused."""
+    same = np.diff(t) <= 0
+    if np.any(same & (np.diff(v) != 0)):
+        i = int(np.flatnonzero(same & (np.diff(v) != 0))[0])
+        raise ValueError(f"{cls}: the speed changes from {v[i]:g} to {v[i + 1]:g} rad/s in no time at "
+                         f"t = {t[i]:g} s (an acceleration too large for the profile's times)")
+    keep = np.append(~same, True)
+    return t[keep], v[keep]
 
 
 @dataclass(frozen=True)
@@ -282,8 +296,8 @@ class Trapezoid(_Profile):
         t2 = t1 + self.t_hold
         t3 = t2 + w / a_down
         if self.t_hold == 0.0:
-            return np.array([0.0, t1, t3]), np.array([0.0, w, 0.0])
-        return np.array([0.0, t1, t2, t3]), np.array([0.0, w, w, 0.0])
+            return _distinct_times(np.array([0.0, t1, t3]), np.array([0.0, w, 0.0]), "Trapezoid")
+        return _distinct_times(np.array([0.0, t1, t2, t3]), np.array([0.0, w, w, 0.0]), "Trapezoid")
 
 
 @dataclass(frozen=True, eq=False)

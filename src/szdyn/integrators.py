@@ -438,6 +438,11 @@ MIN_SAVED_INTERVALS = 10
 #: mistyped duration, speed or N_c would otherwise end, minutes later, in a failed allocation
 #: (the thesis's runs save 13 MB at N_c = 100)
 MAX_OUTPUT_BYTES = 2 * 2**30
+#: most fixed steps of one run the command-line tools start: at N_c = 100 an RK4 step costs ~8 us
+#: (four ~2 us right-hand sides, BENCHMARKS.md), so 1e9 steps are over two hours a run; a
+#: mistyped ``dt`` (1e-9 s over a 13 s thesis run is 1.3e10 steps, a day) would run unheard, and
+#: one of 1e-300 would not even compile
+MAX_FIXED_STEPS = 10**9
 
 
 def steps_per_save(dt: float, save_dt: float) -> int:
@@ -466,12 +471,16 @@ def check_sampling(method: str, dt: float, save_dt: float, duration: float,
     Raises
     ------
     ValueError
-        ``save_dt`` not a whole multiple of ``dt`` (fixed step), the run shorter than
+        ``save_dt`` not a whole multiple of ``dt`` or more than :data:`MAX_FIXED_STEPS` steps
+        (fixed step), the run shorter than
         :data:`MIN_SAVED_INTERVALS` output intervals, or its output larger than
         :data:`MAX_OUTPUT_BYTES`. The message names ``dt``/``save_dt``; callers put it in their
         own terms (an option, a spec key).
     """
     if not _resolve_method(method).adaptive:
+        if duration / dt > MAX_FIXED_STEPS:
+            raise ValueError(f"dt={dt!r} s makes {duration / dt:.3g} fixed steps over the {duration:g} s run, "
+                             f"more than {MAX_FIXED_STEPS:.0e} (hours of work a run): take a larger dt")
         steps_per_save(dt, save_dt)
     if duration / save_dt < MIN_SAVED_INTERVALS * (1 - 1e-9):   # (0.7 s at 0.07 s is 10, not 9.99...)
         raise ValueError(f"save_dt={save_dt!r} s gives {duration / save_dt:.3g} saved intervals over the "

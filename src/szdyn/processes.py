@@ -27,7 +27,11 @@ from contextlib import contextmanager
 
 from .errors import Terminated
 
-__all__ = ["worker_init", "exit_with_parent", "sigterm_as_interrupt"]
+__all__ = ["MAX_WORKERS", "worker_init", "exit_with_parent", "sigterm_as_interrupt"]
+
+#: most worker processes a command starts (``--workers``): a guard, not a tuning; each one loads
+#: numba and the compiled model, and a mistyped 99999999999 ended in an OverflowError traceback
+MAX_WORKERS = 1024
 
 
 def exit_with_parent() -> bool:

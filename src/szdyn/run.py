@@ -72,6 +72,15 @@ def _positive_int(text: str) -> int:
     return v
 
 
+def _workers(text: str) -> int:
+    from .processes import MAX_WORKERS
+
+    v = _positive_int(text)
+    if v > MAX_WORKERS:
+        raise argparse.ArgumentTypeError(f"expected at most {MAX_WORKERS} processes, got {text!r}")
+    return v
+
+
 def add_parameter_options(ap: argparse.ArgumentParser) -> None:
     """``--params``, ``--set`` and ``--n-circles``, shared by the commands (see load_parameters)."""
     ap.add_argument("--params", type=Path, help="parameter JSON file (as simulate writes to OUT/thesis-fig10/params.json "
@@ -122,7 +131,7 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--contact", choices=tuple(CONTACT_MODELS), default=None,
                     help="wheel-band transmission to run: impact (thesis), coulomb or lugre friction "
                          "counter-models (default: all three)")
-    ap.add_argument("--workers", type=_positive_int, default=None,
+    ap.add_argument("--workers", type=_workers, default=None,
                     help="parallel processes (default: one per core)")
     ap.add_argument("--method", choices=METHODS, default="dopri5",
                     help="integrator: heun (thesis's modified Euler), rk4 (fixed step), dopri5 (adaptive); default %(default)s")
@@ -234,7 +243,7 @@ def regime_command(argv) -> int:
     ap.add_argument("--out", type=Path, default=None, help="output directory (default: results/regime-SECOND)")
     add_parameter_options(ap)
     ap.add_argument("--omega-hold", type=_positive_float, default=math.pi, help="held wheel speed, rad/s (default pi)")
-    ap.add_argument("--workers", type=_positive_int, default=None, help="parallel processes (default: one per core)")
+    ap.add_argument("--workers", type=_workers, default=None, help="parallel processes (default: one per core)")
     ap.add_argument("--quiet", action="store_true", help="no progress output")
     args = ap.parse_args(argv)
     params = load_parameters(args)

@@ -64,7 +64,7 @@ from .cli import Parser
 from .errors import ParameterError, SimulationError, UserInputError, interrupted
 from .io import atomic_write_bytes, atomic_write_text, make_output_dir, write_json
 from .metrics import Metric, evaluate_metrics, metric_unit
-from .processes import worker_init
+from .processes import MAX_WORKERS, worker_init
 from .sweep_spec import SweepSpec, build_drive, load_spec, spec_diff
 
 __all__ = ["run_sweep", "run_case", "sweep_command", "SweepResult", "assemble", "load_spec"]
@@ -791,8 +791,8 @@ def sweep_command(argv) -> int:
     Raises UserInputError (incl. SpecError) for mistakes in the spec or the options.
     """
     args = build_parser().parse_args(argv)
-    if args.workers is not None and args.workers < 1:
-        raise UserInputError(f"--workers must be >= 1, got {args.workers}")
+    if args.workers is not None and not 1 <= args.workers <= MAX_WORKERS:
+        raise UserInputError(f"--workers must be in 1..{MAX_WORKERS}, got {args.workers}")
     if args.max_cases is not None and args.max_cases < 0:
         raise UserInputError(f"--max-cases must be >= 0, got {args.max_cases}")
     spec = load_spec(args.spec)

@@ -100,6 +100,7 @@ from szdyn.cli import Parser
 from szdyn.defaults import MAX_N_CIRCLES
 from szdyn.errors import SimulationError, UserInputError
 from szdyn.heldout import least_hiding, split_features
+from szdyn.integrators import check_sampling
 from szdyn.io import atomic_write_text, staged_output, write_json
 
 __all__ = ["Effect", "EFFECTS", "EFFECT_IDS", "RampSpec", "DEFAULT_RAMPS", "QUICK_RAMPS",
@@ -113,6 +114,9 @@ REF_LOAD_KG = 1.0
 REF_SPEED = math.pi
 #: Largest RK4 step (s) of a truth with roller-contact friction (mu_t > 0); see note 5 above.
 TRACTION_DT = 1e-5
+#: largest coefficient perturbation (lognormal sigma; the draws are clipped at 3 sigma): at 1 a
+#: coefficient may already come out e^3 = 20 times its nominal value
+MAX_PERTURB = 1.0
 
 # random-stream ids (numpy.random.default_rng([seed, id]))
 _S_PERTURB, _S_EFFECT, _S_SPLIT, _S_SENSOR, _S_PHASE = 1, 2, 3, 100, 200
@@ -411,18 +415,25 @@ def synthesize(out_dir, effect: str = "none", amplitude=None, seed: int = 0,
     loads = [float(x) for x in loads_kg]
     if not loads or not all(math.isfinite(x) and x > 0 for x in loads):
         raise SynthError(f"loads must be positive numbers (kg), got {list(loads_kg)!r}")
-    if len(set(loads)) != len(loads):
-        raise SynthError(f"loads must be distinct, got {loads!r}")
+    if len({_fmt_load(x) for x in loads}) != len(loads):
+        # the load names the files (load1kg_up.csv): two loads of one name would overwrite
+        raise SynthError(f"loads must be distinct in their first 6 significant digits (they name the "
+                         f"files, e.g. load{_fmt_load(loads[0])}kg_...), got {loads!r}")
     ramps = tuple(r if isinstance(r, RampSpec) else RampSpec(*r) for r in ramps)
     if not ramps or len({r.name for r in ramps}) != len(ramps):
         raise SynthError("ramps must be a non-empty sequence with distinct names")
     for r in ramps:
         if not (math.isfinite(r.a) and r.t_ramp > 0 and r.t_hold >= 0):
             raise SynthError(f"ramp '{r.name}': need finite a, t_ramp > 0, t_hold >= 0")
-    if not (math.isfinite(perturb) and perturb >= 0):
-        raise SynthError(f"perturb must be >= 0, got {perturb!r}")
+    if not (math.isfinite(perturb) and 0 <= perturb <= MAX_PERTURB):
+        raise SynthError(f"perturb (the coefficients' lognormal sigma) must be in [0, {MAX_PERTURB:g}], got "
+                         f"{perturb!r}")
     if not (dt > 0 and save_dt >= dt):
         raise SynthError(f"need 0 < dt <= save_dt, got dt={dt!r}, save_dt={save_dt!r}")
+    try:
+        check_sampling("rk4", dt, save_dt, max(r.t_end for r in ramps))
+    except ValueError as exc:   # a dt that does not divide save_dt, or days of steps
+        raise SynthError(f"the truth's RK4 step: {exc}") from None
 
     A, model_changes, sensor_changes = effect_changes(effect, amplitude, seed=seed,
                                                       n_circles=n_circles, ramps=ramps)
@@ -510,9 +521,9 @@ def record_truth(params, drive, t_end: float, sensor, path, *, seed: int, stream
         run = simulate(params, drive, t_end, method="rk4", dt=dt, save_dt=save_dt,
                        x0=params.initial_state(q_w0))
     except SimulationError as exc:
-        raise SimulationError(f"truth of {fname} failed: {exc} (try a smaller dt than "
-                              f"{dt:g} s, or check the load {load:g} kg); nothing was "
-                              f"written to {final}", t=exc.t, variable=exc.variable) from exc
+        raise SimulationError(f"truth of {fname} failed: {exc} (for synth: try a smaller --dt than "
+                              f"{dt:g} s, or check the load {load:g} kg and the effect's amplitude); "
+                              f"nothing was written to {final}", t=exc.t, variable=exc.variable) from exc
     o = run.outputs
     x = run.trajectory.x
     n = n_circles + 2
@@ -625,8 +636,10 @@ def _with_fields(sensor, changes):
 
 # --------------------------------------------------------------------------- CLI
 def _loads(text: str):
+    if any(not x.strip() for x in text.split(",")):
+        raise argparse.ArgumentTypeError(f"expected comma-separated numbers (kg), got an empty entry in {text!r}")
     try:
-        vals = [float(x) for x in text.split(",") if x.strip()]
+        vals = [float(x) for x in text.split(",")]
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected comma-separated numbers (kg), got {text!r}") from None
     if not vals or not all(math.isfinite(v) and v > 0 for v in vals):

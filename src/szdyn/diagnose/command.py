@@ -9,6 +9,7 @@ from pathlib import Path
 
 from ..cli import Parser
 from ..errors import UserInputError, interrupted
+from ..processes import MAX_WORKERS
 
 __all__ = ["diagnose_command"]
 
@@ -145,11 +146,11 @@ def diagnose_command(argv) -> int:
         raise UserInputError(f"diagnose: --second-look must be >= 0, got {args.second_look}")
     if args.phase_polish < 0:
         raise UserInputError(f"diagnose: --phase-polish must be >= 0, got {args.phase_polish}")
-    if args.workers is not None and args.workers < 1:
-        raise UserInputError(f"diagnose: --workers must be >= 1, got {args.workers}")
+    if args.workers is not None and not 1 <= args.workers <= MAX_WORKERS:
+        raise UserInputError(f"diagnose: --workers must be in 1..{MAX_WORKERS}, got {args.workers}")
     cands = None
     if args.candidates is not None:
-        cands = [c.strip() for c in args.candidates.split(",") if c.strip()]
+        cands = list(dict.fromkeys(c.strip() for c in args.candidates.split(",") if c.strip()))   # once each
         if not cands:
             raise UserInputError(f"diagnose: --candidates {args.candidates!r} names no candidate; "
                                  f"known: {', '.join(CANDIDATES)} (leave it out for all)")
