@@ -239,11 +239,19 @@ def test_unknown_effect_names_it_and_suggests(tmp_path):
     (["--out", "X", "--loads", "0.5,,1"], "an empty entry in '0.5,,1'"),
     (["--out", "X", "--perturb", "1000"], r"perturb .* must be in \[0, 1\], got 1000.0"),
     (["--out", "X" + "x" * 300], "not a usable directory \\(File name too long\\)"),
+    (["--out", "X", "--current", "1e-310"], r"--current must be a torque constant in 1e-6..1e3 N m/A"),
 ])
 def test_cli_mistakes_are_user_errors(tmp_path, argv, match):
     argv = [str(tmp_path / a) if a.startswith("X") else a for a in argv]
     with pytest.raises(UserInputError, match=match):
         synth_command(argv + ["--quick", "--quiet"])
+
+
+def test_an_amplitude_beyond_the_realistic_range_is_noted_even_when_quiet(tmp_path, capsys):
+    synth_command(["--out", str(tmp_path), "--quick", "--quiet", "--loads", "1", "--effect", "load_lift",
+                   "--amplitude", "1.6"])
+    err = capsys.readouterr().err
+    assert "synth: note: amplitude 1.6 of 'load_lift' is outside its realistic range" in err
 
 
 def test_cli_quick_run(tmp_path, capsys):

@@ -76,7 +76,7 @@ encoder_delay       band-encoder delay    0.002 - 0.020      sensor ``encoder_de
 
 An amplitude of exactly 0 switches the effect off (no parameter or sensor change), so the
 recordings equal those of ``"none"`` with the same seed bit for bit. Amplitudes outside the
-realistic range are accepted (for benchmark sweeps) with a note on stderr.
+realistic range are accepted (for benchmark sweeps) with a note on stderr, even with ``--quiet``.
 
 Random streams are separate per purpose (``numpy.random.default_rng([seed, k])``: perturbation,
 effect draws, split, and one per recording for the sensor), so the effect never shifts the
@@ -440,8 +440,9 @@ def synthesize(out_dir, effect: str = "none", amplitude=None, seed: int = 0,
     if effect != "none" and amplitude is not None and A != 0:
         lo, hi = EFFECTS[effect].range
         if not lo <= abs(A) <= hi:
-            _say(verbose, f"note: amplitude {A:g} of '{effect}' is outside its realistic range "
-                          f"{lo:g}-{hi:g} ({EFFECTS[effect].amplitude})")
+            # said even when quiet: the recordings are of an effect no real machine shows
+            _say(True, f"note: amplitude {A:g} of '{effect}' is outside its realistic range "
+                       f"{lo:g}-{hi:g} ({EFFECTS[effect].amplitude})")
     coeffs, factors = perturbed_coefficients(perturb, seed, n_circles)
     base = default_parameters(n_circles).replace(**coeffs, **model_changes)
     sensor = SensorModel() if sensor is None else sensor
@@ -536,8 +537,8 @@ def record_truth(params, drive, t_end: float, sensor, path, *, seed: int, stream
             f"N m s/rad); check drive_mode 2 in the model", t=None, variable="u_w")
     if not np.abs(o["u_b"]).max() <= 10 * w_max + 10:
         raise SimulationError(f"truth of {fname} is unphysical: band speed reaches "
-                              f"{np.abs(o['u_b']).max():.3g} rad/s (try a smaller dt, or "
-                              f"check the load {load:g} kg); nothing was written to "
+                              f"{np.abs(o['u_b']).max():.3g} rad/s (try a smaller --dt, or check "
+                              f"the load {load:g} kg and the effect's amplitude); nothing was written to "
                               f"{final}", t=None, variable="u_b")
     # motor-side encoder: with the compliant drive, the prescribed motor angle
     q_enc = drive.evaluate(o["t"], angle0=float(x[0, 0]))[0] if params["drive_mode"] == 2 else o["q_w"]
@@ -698,8 +699,9 @@ def synth_command(argv) -> int:
         raise SynthError(f"synth: --amplitude must be finite, got {args.amplitude}")
     if not (math.isfinite(args.dt) and args.dt > 0):
         raise SynthError(f"synth: --dt must be > 0, got {args.dt}")
-    if args.current is not None and not (math.isfinite(args.current) and args.current > 0):
-        raise SynthError(f"synth: --current must be > 0 (N m/A), got {args.current}")
+    if args.current is not None and not (math.isfinite(args.current) and 1e-6 <= args.current <= 1e3):
+        # a guard: motor torque constants are ~0.01-1 N m/A; 1e-310 made an infinite current column
+        raise SynthError(f"synth: --current must be a torque constant in 1e-6..1e3 N m/A, got {args.current}")
     from szdyn.sensors import SensorModel
 
     period = SensorModel().sample_period
