@@ -1071,7 +1071,7 @@ def test_diagnose_nomination_threshold_outside_0_1_is_a_clear_error(tmp_path, ca
 
 @pytest.mark.parametrize("flag, value", [("--polish-jac", "-1"), ("--rivals", "-1"), ("--unstall", "-1"),
                                          ("--phase-steps", "-1"), ("--workers", "99999999999")])
-def test_diagnose_negative_budget_is_a_clear_error(tmp_path, capsys, flag, value):
+def test_diagnose_option_out_of_range_is_a_clear_error(tmp_path, capsys, flag, value):
     m = tmp_path / "m.toml"
     m.write_text("")
     rc = run_main(["diagnose", str(m), "--out", str(tmp_path / "o"), flag, value])
@@ -1307,10 +1307,35 @@ def test_an_out_holding_files_no_diagnosis_wrote_is_refused_before_the_fit(null,
         (tmp_path / k).write_text(v)
     assert run_main(["diagnose", str(tmp_path / "m.toml"), "--out", str(tmp_path), "--quiet"]) == 2
     err = capsys.readouterr().err
-    assert (f"holds params.json, report.md, which no diagnosis wrote there (no diagnosis.json beside them)"
+    assert ("holds params.json, report.md without a diagnosis.json beside them (not a diagnosis's output)"
             in err) and "Traceback" not in err
     assert all((tmp_path / k).read_text() == v for k, v in mine.items())
     assert not (tmp_path / "checkpoint").exists()
+
+
+@pytest.mark.parametrize("left", ["diagnosis.json", "checkpoint", "report"])
+def test_an_out_a_diagnosis_left_is_taken_again(null, tmp_path, monkeypatch, capsys, left):
+    """A diagnosis's own --out (also one stopped while its files moved in, diagnosis.json not yet
+    there: its checkpoint or its report's title tells) passes the check; the fit is stopped here."""
+    from szdyn.diagnose import diagnosis
+
+    _, _, out = null
+    data = out.parent / "data"
+    o = tmp_path / "o"
+    o.mkdir()
+    (o / "params.json").write_text("{}")
+    if left == "diagnosis.json":
+        (o / "diagnosis.json").write_text("{}")
+    elif left == "checkpoint":
+        (o / "checkpoint").mkdir()
+    else:
+        (o / "report.md").write_text("# szdyn diagnosis\n\n**Verdict: none.**\n")
+
+    def stop(self, recs):
+        raise UserInputError("stopped after the checks")
+    monkeypatch.setattr(diagnosis.Diagnosis, "fit", stop)
+    assert run_main(["diagnose", str(data / "manifest.toml"), "--out", str(o), "--quiet", "--no-checkpoint"]) == 2
+    assert "stopped after the checks" in capsys.readouterr().err
 
 
 def test_recordings_the_final_model_cannot_run_are_said(null, tmp_path, monkeypatch, capsys):

@@ -119,9 +119,9 @@ def test_a_failing_block_moves_nothing_and_a_file_dest_is_refused(tmp_path):
 
 
 @pytest.mark.parametrize("via", ["staged_output", "make_output_dir"])
-def test_an_output_directory_the_system_refuses_is_a_clear_error_and_leaves_nothing(tmp_path, via):
+def test_an_output_directory_the_system_refuses_is_a_clear_error(tmp_path, via):
     """A name over the file system's 255-byte limit: a UserInputError naming the directory, not
-    an OSError traceback, and the directories made above it on the way are removed again."""
+    an OSError traceback."""
     dest = tmp_path / "a" / ("x" * 300) / "b"
     with pytest.raises(UserInputError, match=r"cannot create the output directory \(File name too long\)"):
         if via == "make_output_dir":
@@ -129,7 +129,22 @@ def test_an_output_directory_the_system_refuses_is_a_clear_error_and_leaves_noth
         else:
             with staged_output(dest):
                 pass
-    assert list(tmp_path.iterdir()) == []   # tmp_path/a, made on the way, is gone
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_the_directories_made_before_a_refusal_are_removed(tmp_path, monkeypatch):
+    """mkdir makes the parents, then fails on the last (as a read-only or full file system
+    would): the parents it made are removed, what was there before stays."""
+    (tmp_path / "kept").mkdir()
+    real = Path.mkdir
+
+    def mkdir(self, *args, **kw):
+        real(self.parent, parents=True, exist_ok=True)
+        raise PermissionError(13, "Permission denied", str(self))
+    monkeypatch.setattr(Path, "mkdir", mkdir)
+    with pytest.raises(UserInputError, match=r"d: cannot create the output directory \(Permission denied\)"):
+        make_output_dir(tmp_path / "kept" / "a" / "b" / "c" / "d")
+    assert [p.name for p in tmp_path.rglob("*")] == ["kept"]
 
 
 def test_make_output_dir_says_what_it_made(tmp_path):

@@ -234,6 +234,7 @@ class RampHold(_Profile):
                                                          positive=True, unit="s"))
         object.__setattr__(self, "t_hold", _check_scalar("RampHold", "t_hold", self.t_hold,
                                                          nonnegative=True, unit="s"))
+        self.knots()   # refused when built, not at the first run
 
     def knots(self):
         w = self.a * self.t_ramp
@@ -288,6 +289,7 @@ class Trapezoid(_Profile):
         if self.a_down is not None:
             object.__setattr__(self, "a_down", _check_scalar(c, "a_down", self.a_down,
                                                              positive=True, unit="rad/s^2"))
+        self.knots()   # refused when built (a ramp in no time), not at the first run
 
     def knots(self):
         a_down = self.a if self.a_down is None else self.a_down

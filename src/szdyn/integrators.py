@@ -34,7 +34,7 @@ from szdyn_generated.spiral_zipper import rhs as _rhs
 from .errors import SimulationError
 
 __all__ = ["Tableau", "HEUN", "RK4", "DOPRI5", "TABLEAUX", "Trajectory", "integrate", "steps_per_save",
-           "check_sampling", "MIN_SAVED_INTERVALS", "MAX_OUTPUT_BYTES"]
+           "check_sampling", "MIN_SAVED_INTERVALS", "MAX_OUTPUT_BYTES", "MAX_FIXED_STEPS"]
 
 # Kernel status codes.
 OK = 0

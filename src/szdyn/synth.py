@@ -100,7 +100,7 @@ from szdyn.cli import Parser
 from szdyn.defaults import MAX_N_CIRCLES
 from szdyn.errors import SimulationError, UserInputError
 from szdyn.heldout import least_hiding, split_features
-from szdyn.integrators import check_sampling
+from szdyn.integrators import check_sampling, steps_per_save
 from szdyn.io import atomic_write_text, staged_output, write_json
 
 __all__ = ["Effect", "EFFECTS", "EFFECT_IDS", "RampSpec", "DEFAULT_RAMPS", "QUICK_RAMPS",
@@ -114,6 +114,8 @@ REF_LOAD_KG = 1.0
 REF_SPEED = math.pi
 #: Largest RK4 step (s) of a truth with roller-contact friction (mu_t > 0); see note 5 above.
 TRACTION_DT = 1e-5
+#: the truth's sampling by the command (s): well below the logger's 2 ms period, a multiple of --dt
+SAVE_DT = 1e-4
 #: largest coefficient perturbation (lognormal sigma; the draws are clipped at 3 sigma): at 1 a
 #: coefficient may already come out e^3 = 20 times its nominal value
 MAX_PERTURB = 1.0
@@ -415,10 +417,14 @@ def synthesize(out_dir, effect: str = "none", amplitude=None, seed: int = 0,
     loads = [float(x) for x in loads_kg]
     if not loads or not all(math.isfinite(x) and x > 0 for x in loads):
         raise SynthError(f"loads must be positive numbers (kg), got {list(loads_kg)!r}")
-    if len({_fmt_load(x) for x in loads}) != len(loads):
+    named = {}
+    for x in loads:
+        named.setdefault(_fmt_load(x), []).append(x)
+    same = next((xs for xs in named.values() if len(xs) > 1), None)
+    if same:
         # the load names the files (load1kg_up.csv): two loads of one name would overwrite
         raise SynthError(f"loads must be distinct in their first 6 significant digits (they name the "
-                         f"files, e.g. load{_fmt_load(loads[0])}kg_...), got {loads!r}")
+                         f"files): {', '.join(map(repr, same))} would all write load{_fmt_load(same[0])}kg_*.csv")
     ramps = tuple(r if isinstance(r, RampSpec) else RampSpec(*r) for r in ramps)
     if not ramps or len({r.name for r in ramps}) != len(ramps):
         raise SynthError("ramps must be a non-empty sequence with distinct names")
@@ -430,10 +436,6 @@ def synthesize(out_dir, effect: str = "none", amplitude=None, seed: int = 0,
                          f"{perturb!r}")
     if not (dt > 0 and save_dt >= dt):
         raise SynthError(f"need 0 < dt <= save_dt, got dt={dt!r}, save_dt={save_dt!r}")
-    try:
-        check_sampling("rk4", dt, save_dt, max(r.t_end for r in ramps))
-    except ValueError as exc:   # a dt that does not divide save_dt, or days of steps
-        raise SynthError(f"the truth's RK4 step: {exc}") from None
 
     A, model_changes, sensor_changes = effect_changes(effect, amplitude, seed=seed,
                                                       n_circles=n_circles, ramps=ramps)
@@ -461,6 +463,10 @@ def synthesize(out_dir, effect: str = "none", amplitude=None, seed: int = 0,
         _say(verbose, f"note: rk4 dt {dt:g} s -> {dt_new:g} s: roller-contact friction (mu_t > 0) "
                       f"needs <= {TRACTION_DT:g} s to converge")
         dt = dt_new
+    try:
+        check_sampling("rk4", dt, save_dt, max(r.t_end for r in ramps))
+    except ValueError as exc:   # a dt that does not divide save_dt, or hours of steps
+        raise SynthError(f"the truth's RK4 step: {exc}") from None
 
     out = Path(out_dir)
     if out.exists() and not out.is_dir():
@@ -658,9 +664,12 @@ def _build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     ap.add_argument("--loads", type=_loads, help="loads in kg, comma-separated (default 0.5,1,1.5)")
     ap.add_argument("--n-circles", type=int, help="N_c of the truth model (default 100; 16 with --quick)")
-    ap.add_argument("--perturb", type=float, default=0.1, help="lognormal sigma of the coefficient perturbation (default 0.1)")
-    ap.add_argument("--dt", type=float, default=2e-5, help="RK4 step of the truth (s, default 2e-5)")
-    ap.add_argument("--current", type=float, metavar="KT", help="also log motor current with torque constant KT (N m/A)")
+    ap.add_argument("--perturb", type=float, default=0.1,
+                    help="lognormal sigma of the coefficient perturbation, 0..1 (default 0.1)")
+    ap.add_argument("--dt", type=float, default=2e-5,
+                    help="RK4 step of the truth (s, default 2e-5; a divisor of 1e-4 s, or at most 5e-4 s)")
+    ap.add_argument("--current", type=float, metavar="KT",
+                    help="also log motor current with torque constant KT (N m/A, 1e-6..1e3)")
     ap.add_argument("--quick", action="store_true", help="N_c 16 and two 0.5 s ramps (for tests)")
     ap.add_argument("--list-effects", action="store_true", help="print the effect library and exit")
     ap.add_argument("--overwrite", action="store_true",
@@ -699,6 +708,12 @@ def synth_command(argv) -> int:
         raise SynthError(f"synth: --amplitude must be finite, got {args.amplitude}")
     if not (math.isfinite(args.dt) and args.dt > 0):
         raise SynthError(f"synth: --dt must be > 0, got {args.dt}")
+    if args.dt < SAVE_DT:
+        try:
+            steps_per_save(args.dt, SAVE_DT)
+        except ValueError:
+            raise SynthError(f"synth: --dt must divide the truth's {SAVE_DT:g} s sampling (e.g. 5e-5, 2.5e-5, "
+                             f"2e-5, 1e-5), got {args.dt:g}") from None
     if args.current is not None and not (math.isfinite(args.current) and 1e-6 <= args.current <= 1e3):
         # a guard: motor torque constants are ~0.01-1 N m/A; 1e-310 made an infinite current column
         raise SynthError(f"synth: --current must be a torque constant in 1e-6..1e3 N m/A, got {args.current}")
@@ -727,7 +742,7 @@ def synth_command(argv) -> int:
     if args.loads is not None:
         kw["loads_kg"] = tuple(args.loads)
     synthesize(args.out, effect=args.effect, amplitude=args.amplitude, seed=args.seed,
-               perturb=args.perturb, dt=args.dt, save_dt=max(1e-4, args.dt),
+               perturb=args.perturb, dt=args.dt, save_dt=max(SAVE_DT, args.dt),
                torque_constant=args.current, verbose=not args.quiet, **kw)
     return 0
 

@@ -9,6 +9,7 @@ from pathlib import Path
 
 from ..cli import Parser
 from ..errors import UserInputError, interrupted
+from ..io import make_output_dir
 from ..processes import MAX_WORKERS
 
 __all__ = ["diagnose_command"]
@@ -118,6 +119,15 @@ def _build_parser():
     return ap
 
 
+def _is_diagnosis_report(path: Path) -> bool:
+    """Whether ``path`` is a report.md a diagnosis wrote (its title line)."""
+    try:
+        with open(path, encoding="utf-8", errors="replace") as f:
+            return f.readline().rstrip("\n") == "# szdyn diagnosis"
+    except OSError:
+        return False
+
+
 def diagnose_command(argv) -> int:
     from ..manifest import read_manifest
     from .candidates import CANDIDATES
@@ -209,17 +219,18 @@ def diagnose_command(argv) -> int:
         f"{sum(r.role != 'fit' for r in recs)} held out")
     # before the diagnosis: an --out that cannot take the results would lose the whole diagnosis
     try:
-        args.out.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise UserInputError(f"diagnose: --out {args.out}: cannot create the output directory "
-                             f"({exc.strerror or exc})") from None
+        make_output_dir(args.out)
+    except UserInputError as exc:
+        raise UserInputError(f"diagnose: --out: {exc}") from None
     # the diagnosis replaces its own files (report.md, params.json, ...) in --out; files of those
-    # names without a diagnosis.json beside them are someone else's (e.g. --out the data folder)
+    # names are someone else's (e.g. --out the data folder) unless a diagnosis left them: its
+    # diagnosis.json, its checkpoint (a run stopped while its files moved in) or its report's title
     foreign = [f for f in OUTPUT_FILES if (args.out / f).exists()]
-    if foreign and not (args.out / "diagnosis.json").is_file():
-        raise UserInputError(f"diagnose: --out {args.out} holds {', '.join(foreign)}, which no diagnosis "
-                             "wrote there (no diagnosis.json beside them); the diagnosis would replace "
-                             "them: choose another --out, or move them away")
+    if foreign and not ((args.out / "diagnosis.json").is_file() or (args.out / CHECKPOINT_DIR).is_dir()
+                        or _is_diagnosis_report(args.out / "report.md")):
+        raise UserInputError(f"diagnose: --out {args.out} holds {', '.join(foreign)} without a "
+                             "diagnosis.json beside them (not a diagnosis's output); the diagnosis "
+                             "would replace them: choose another --out, or move them away")
     checkpoint = None if args.no_checkpoint else RunCheckpoint(
         args.out / CHECKPOINT_DIR, fingerprint(recs), warn=lambda m: print(f"diagnose: {m}", file=sys.stderr))
     d = Diagnosis(cands, shortlist=args.shortlist, nominate_r2=args.nominate_r2,
