@@ -69,6 +69,7 @@ def test_counter_model_run(tmp_path):
     (["--method", "heun", "--dt", "1e-300"], "fixed steps over the"),
     (["--set", "n_rollers=1e9"], "at most 1000"),
     (["--out", "/tmp/" + "x" * 300], "cannot create the output directory (file name too long)"),
+    (["--out", ""], "--out: expected a directory, got an empty string"),   # once the current directory
 ])
 def test_bad_input_is_a_one_line_error(argv, expect, capsys, tmp_path):
     code = main(["--out", str(tmp_path)] + SMALL + argv)

@@ -241,6 +241,7 @@ def test_unknown_effect_names_it_and_suggests(tmp_path):
     # (Python 3.11 raises at exists(), later ones at mkdir)
     (["--out", "X" + "x" * 300], "(not a usable directory|cannot create the output directory) \\(File name too long\\)"),
     (["--out", "X", "--current", "1e-310"], r"--current must be a torque constant in 1e-6..1e3 N m/A"),
+    (["--out", " "], "--out: expected a directory, got an empty string"),
 ])
 def test_cli_mistakes_are_user_errors(tmp_path, argv, match):
     argv = [str(tmp_path / a) if a.startswith("X") else a for a in argv]

@@ -13,7 +13,18 @@ import re
 
 from szdyn.errors import UserInputError
 
-__all__ = ["Parser"]
+__all__ = ["Parser", "directory"]
+
+
+def directory(text: str) -> "Path":
+    """argparse type of an output directory: a path, but not an empty string, which ``Path``
+    reads as the current directory (``--out ""``, or ``--out "$OUT"`` with OUT unset)."""
+    from pathlib import Path
+
+    if not text.strip():
+        raise argparse.ArgumentTypeError("expected a directory, got an empty string (use . for the "
+                                         "current directory)")
+    return Path(text)
 
 
 class Parser(argparse.ArgumentParser):

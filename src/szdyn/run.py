@@ -15,7 +15,7 @@ import textwrap
 import warnings
 from pathlib import Path
 
-from .cli import Parser
+from .cli import Parser, directory
 from .errors import ParameterError, SimulationError, UserInputError, interrupted
 
 METHODS = ("rk4", "heun", "dopri5")
@@ -125,7 +125,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     ap.add_argument("--scenario", default="thesis-fig10", choices=sorted(SCENARIOS),
                     help="scenario to run (default: %(default)s)")
-    ap.add_argument("--out", type=Path, default=Path("results"),
+    ap.add_argument("--out", type=directory, default=Path("results"),
                     help="output directory; the files go into OUT/SCENARIO/ (default: %(default)s)")
     add_parameter_options(ap)
     ap.add_argument("--contact", choices=tuple(CONTACT_MODELS), default=None,
@@ -240,7 +240,7 @@ def regime_command(argv) -> int:
                     help="second axis, swept as factors %s of its value in the parameter set (after --params "
                          "and --set; default axis: %%(default)s)" %
                          ", ".join(f"{k}: {v}" for k, v in SECOND_AXES.items()))
-    ap.add_argument("--out", type=Path, default=None, help="output directory (default: results/regime-SECOND)")
+    ap.add_argument("--out", type=directory, default=None, help="output directory (default: results/regime-SECOND)")
     add_parameter_options(ap)
     ap.add_argument("--omega-hold", type=_positive_float, default=math.pi, help="held wheel speed, rad/s (default pi)")
     ap.add_argument("--workers", type=_workers, default=None, help="parallel processes (default: one per core)")

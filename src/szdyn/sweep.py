@@ -60,7 +60,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .cli import Parser
+from .cli import Parser, directory
 from .errors import ParameterError, SimulationError, UserInputError, interrupted
 from .io import atomic_write_bytes, atomic_write_text, make_output_dir, write_json
 from .metrics import Metric, evaluate_metrics, metric_unit
@@ -771,7 +771,7 @@ def build_parser() -> argparse.ArgumentParser:
                     "examples/sweep_example.toml). Writes cases.csv (+ columns.json), one .npz "
                     "time-series file per case, metrics.png. Re-run the same command to resume.")
     ap.add_argument("spec", type=Path, help="sweep spec (TOML)")
-    ap.add_argument("--out", type=Path, help="output directory (default: results/<spec name>)")
+    ap.add_argument("--out", type=directory, help="output directory (default: results/<spec name>)")
     ap.add_argument("--workers", type=int, default=None,
                     help="parallel workers (default: all cores; 1 = in this process)")
     g = ap.add_mutually_exclusive_group()

@@ -96,7 +96,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from szdyn.cli import Parser
+from szdyn.cli import Parser, directory
 from szdyn.defaults import MAX_N_CIRCLES
 from szdyn.errors import SimulationError, UserInputError
 from szdyn.heldout import least_hiding, split_features
@@ -658,7 +658,7 @@ def _build_parser() -> argparse.ArgumentParser:
     ap = Parser("synth", prog="python -m szdyn.run synth",
                  description="Write synthetic recordings (CSV + manifest.toml + truth.json) from a "
                              "perturbed truth model with one concealed effect.")
-    ap.add_argument("--out", type=Path, required=True, help="output directory")
+    ap.add_argument("--out", type=directory, required=True, help="output directory")
     ap.add_argument("--effect", default="none", help=f"concealed effect: {', '.join(EFFECT_IDS)}")
     ap.add_argument("--amplitude", type=float, help="effect amplitude (default: drawn from its realistic range)")
     ap.add_argument("--seed", type=int, default=0, help="random seed (default 0)")

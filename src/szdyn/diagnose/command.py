@@ -7,7 +7,7 @@ import time
 from dataclasses import replace
 from pathlib import Path
 
-from ..cli import Parser
+from ..cli import Parser, directory
 from ..errors import UserInputError, interrupted
 from ..io import make_output_dir
 from ..processes import MAX_WORKERS
@@ -24,7 +24,7 @@ def _build_parser():
                              "effect from a library, refit and report (report.md, diagnosis.json, PNGs, "
                              "params.json).")
     ap.add_argument("manifest", type=Path, help="manifest TOML listing the recordings and their conditions")
-    ap.add_argument("--out", type=Path, required=True, help="output directory")
+    ap.add_argument("--out", type=directory, required=True, help="output directory")
     ap.add_argument("--candidates", help="comma-separated effect ids to screen (default: all: "
                     + ", ".join(CANDIDATES) + ")")
     ap.add_argument("--shortlist", type=int, default=2, help="candidates refitted nonlinearly (default 2)")
