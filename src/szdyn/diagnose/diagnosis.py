@@ -2186,7 +2186,7 @@ class Diagnosis:
             self.heldout_beyond_floor_ = {k: v / self.floor_ for k, v in after.items()
                                           if self.rule.mismatch(v, self.floor_)}
             self.final_speed_ = dict(zip(all_idx, model.speeds([fh.point(self.final_.x)], all_idx)[0]))
-            # a run that failed with both integrators stands for a band at rest (zeros): where the
+            # a run that failed with every integrator stands for a band at rest (zeros): where the
             # final model's own run failed, its figures for that recording are no fit, and the
             # report says so instead of leaving it to the cost line's count
             self.final_failed_ = failed_on(model, fh.point(self.final_.x), all_idx)
