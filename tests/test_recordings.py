@@ -139,6 +139,14 @@ def test_broken_file_names_file_line_and_column(tmp_path, text, line, column, ms
     assert isinstance(ei.value, UserInputError)
 
 
+def test_a_utf16_file_without_a_byte_order_mark_is_named_as_such(tmp_path):
+    """Read as UTF-8, each character comes with a NUL: it once said the 't' column was missing."""
+    p = tmp_path / "ramp1.csv"
+    p.write_bytes("t,theta_w,theta_b\n0,0,0\n0.1,1,1\n".encode("utf-16-le"))
+    with pytest.raises(RecordingError, match=r"^ramp1.csv, line 1: NUL bytes in the header: a UTF-16 "):
+        read_recording(p)
+
+
 @pytest.mark.parametrize("text", ["", "\n\n", "t,theta_w,theta_b\n", "# only a comment\n"])
 def test_empty_file(tmp_path, text):
     with pytest.raises(RecordingError, match=r"ramp1\.csv: empty file \(no data rows\)"):

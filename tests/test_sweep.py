@@ -111,6 +111,8 @@ def test_options_beyond_their_range_are_refused_before_any_case(tmp_path):
                       (["--out", str(tmp_path / ("x" * 300))], "--out: .*cannot create the output directory")):
         with pytest.raises(UserInputError, match=say):
             sweep_command([str(spec), "--out", str(tmp_path / "out"), "--quiet", *argv])
+    with pytest.raises(UserInputError, match="--workers must be in 1..1024"):   # called as a library too
+        run_sweep(spec, tmp_path / "out", workers=10 ** 11, progress=False)
     assert sorted(p.name for p in tmp_path.iterdir()) == [spec.name]
 
 

@@ -309,6 +309,10 @@ def _read(fh, path, conditions, name) -> Recording:
         if rec[0].lstrip().startswith("#"):
             continue
         if header is None:
+            if any("\x00" in c for c in rec):
+                # UTF-16 without a byte-order mark decodes as UTF-8 with a NUL after each character
+                raise RecordingError("NUL bytes in the header: a UTF-16 (or binary) file? szdyn reads "
+                                     "UTF-8 text, save the file as UTF-8", path=path, line=line)
             header = [c.strip() for c in rec]
             header_line = line
             seen = {}

@@ -490,8 +490,8 @@ def run_sweep(spec, out, *, workers: int | None = None, dask_client=None,
     if not isinstance(spec, SweepSpec):
         spec = load_spec(spec)
     out = Path(out)
-    if workers is not None and workers < 1:
-        raise UserInputError(f"--workers must be >= 1, got {workers}")
+    if workers is not None and not 1 <= workers <= MAX_WORKERS:
+        raise UserInputError(f"--workers must be in 1..{MAX_WORKERS}, got {workers}")
     if max_cases is not None and max_cases < 0:
         raise UserInputError(f"--max-cases must be >= 0, got {max_cases}")
     try:
