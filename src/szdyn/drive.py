@@ -249,8 +249,9 @@ def _distinct_times(t, v, cls: str):
     two knots at one time with one speed are one knot. Two at one time with two speeds (a ramp so
     steep that it takes no time in floating point) would divide by zero in the slope: refused."""
     same = np.diff(t) <= 0
-    if np.any(same & (np.diff(v) != 0)):
-        i = int(np.flatnonzero(same & (np.diff(v) != 0))[0])
+    jumps = np.flatnonzero(same & (np.diff(v) != 0))
+    if jumps.size:
+        i = int(jumps[0])
         raise ValueError(f"{cls}: the speed changes from {v[i]:g} to {v[i + 1]:g} rad/s in no time at "
                          f"t = {t[i]:g} s (an acceleration too large for the profile's times)")
     keep = np.append(~same, True)

@@ -121,9 +121,11 @@ def _build_parser():
 
 def _is_diagnosis_report(path: Path) -> bool:
     """Whether ``path`` is a report.md a diagnosis wrote (its title line)."""
+    from .report import REPORT_TITLE
+
     try:
         with open(path, encoding="utf-8", errors="replace") as f:
-            return f.readline().rstrip("\n") == "# szdyn diagnosis"
+            return f.readline().rstrip("\n") == REPORT_TITLE
     except OSError:
         return False
 

@@ -27,8 +27,10 @@ from .diagnosis import AMPLITUDE_MULTIPLES, AMPLITUDE_PROBES
 from .locate import feature_table
 from .phase import IDENTIFIED_SHARE, PHASE_UNCERTAINTY
 
-__all__ = ["OUTPUT_FILES", "write_report", "to_json", "updated_parameters"]
+__all__ = ["OUTPUT_FILES", "REPORT_TITLE", "write_report", "to_json", "updated_parameters"]
 
+#: First line of every report.md (also how ``diagnose`` tells its own --out from someone else's).
+REPORT_TITLE = "# szdyn diagnosis"
 #: Every file :func:`write_report` may write; one a run does not write is removed from ``out``.
 OUTPUT_FILES = ("params.json", "report.md", "diagnosis.json", "residual_time.png", "residual_features.png",
                 "candidates.png", "heldout_fit.png", "torque_fit.png", "next_recording.png")
@@ -682,7 +684,7 @@ def failed_md(names, selected) -> str:
 
 
 def _report_md(d, js) -> str:
-    L = ["# szdyn diagnosis", ""]
+    L = [REPORT_TITLE, ""]
     v = d.verdict_
     if v == "none":
         L += ["**Verdict: none.** The calibrated base model reproduces the fit recordings to within the "
