@@ -242,6 +242,18 @@ def test_unknown_effect_names_it_and_suggests(tmp_path):
     (["--out", "X" + "x" * 300], "(not a usable directory|cannot create the output directory) \\(File name too long\\)"),
     (["--out", "X", "--current", "1e-310"], r"--current must be a torque constant in 1e-6..1e3 N m/A"),
     (["--out", " "], "--out: expected a directory, got an empty string"),
+    # --ramps: each entry and field named
+    (["--out", "X", "--ramps", "up:1:2"], r"entry 1 'up:1:2': expected NAME:A:T_RAMP:T_HOLD\[:T_STOP\]"),
+    (["--out", "X", "--ramps", "up:1:1:1,../x:1:1:1"], r"entry 2: name '../x': use 1-40 letters"),
+    (["--out", "X", "--ramps", "up:1:1:one"], r"entry 1 \(up\): t_hold 'one' is not a number"),
+    (["--out", "X", "--ramps", "up:0:1:1"], r"entry 1 \(up\): a must be a finite, non-zero acceleration"),
+    (["--out", "X", "--ramps", "up:nan:1:1"], r"a must be a finite, non-zero"),
+    (["--out", "X", "--ramps", "up:1:0:1"], r"entry 1 \(up\): t_ramp must be > 0 s, got 0.0"),
+    (["--out", "X", "--ramps", "up:1:1:1:-1"], r"t_stop must be >= 0 s, got -1.0"),
+    (["--out", "X", "--ramps", "up:1:1:1:inf"], r"t_stop must be >= 0 s, got inf"),
+    (["--out", "X", "--ramps", "up:1:1:600"], r"entry 1 \(up\): lasts 601 s; at most 600 s per profile"),
+    (["--out", "X", "--ramps", "up:1:1:1,up:2:1:1"], r"entry 2: the name 'up' is used twice"),
+    (["--out", "X", "--ramps", "up:1:1:1:1e-300"], r"entry 1: ramp 'up': the speed changes from 1 to 0 rad/s in no time"),
 ])
 def test_cli_mistakes_are_user_errors(tmp_path, argv, match):
     argv = [str(tmp_path / a) if a.startswith("X") else a for a in argv]
@@ -267,6 +279,33 @@ def test_cli_quick_run(tmp_path, capsys):
     assert truth["effect"] == "friction_asymmetry" and truth["amplitude_drawn"]
     assert 0.1 <= abs(truth["effect_parameters"]["fric_asym"]) <= 0.3
     assert set(EFFECT_IDS) == {"none", *EFFECTS}
+
+
+def test_cli_ramps_with_a_stop(tmp_path):
+    # a profile that stops: the wheel's logged speed rises to the hold, stays, and falls to rest
+    # in the recording; the hold knot of a zero hold is dropped; truth.json records the stop
+    assert synth_command(["--out", str(tmp_path), "--quick", "--quiet", "--loads", "1", "--ramps",
+                          "go:6.2832:0.25:0.1:0.25,back:-4:0.25:0:0.3"]) == 0
+    m = read_manifest(tmp_path / "manifest.toml")
+    assert sorted(e.name for e in m.entries) == ["load1kg_back.csv", "load1kg_go.csv"]
+    truth = json.loads((tmp_path / "truth.json").read_text())
+    go, back = truth["ramps"]
+    assert go == {"name": "go", "a": 6.2832, "t_ramp": 0.25, "t_hold": 0.1, "t_stop": 0.25,
+                  "omega_hold": pytest.approx(1.5708), "t_end": pytest.approx(0.6)}
+    assert back["t_end"] == pytest.approx(0.55) and back["omega_hold"] == -1.0
+    rec = read_recording(tmp_path / "load1kg_go.csv")
+    assert rec.t[-1] == pytest.approx(0.6, abs=0.005)
+    w = rec.omega_ref
+    assert w.max() == pytest.approx(1.5708, rel=0.02) and abs(w[-1]) < 0.02 * 1.5708
+    # the wheel turns by the profile's integral (ramp, hold, stop: 0.196 + 0.157 + 0.196 rad)
+    assert rec.theta_w[-1] - rec.theta_w[0] == pytest.approx(0.5498, abs=0.01)
+    # the default ramps' truth.json has no t_stop (as before the option)
+    assert all("t_stop" not in r.to_dict() for r in DEFAULT_RAMPS)
+    # the library refuses what the CLI refuses
+    with pytest.raises(SynthError, match=r"ramp name '\.\./x'"):
+        synthesize(tmp_path / "x", ramps=[("../x", 1.0, 1.0, 1.0)], **{k: v for k, v in QUICK.items() if k != "ramps"})
+    with pytest.raises(SynthError, match=r"ramp 'z': need finite a != 0"):
+        synthesize(tmp_path / "x", ramps=[("z", 0.0, 1.0, 1.0)], **{k: v for k, v in QUICK.items() if k != "ramps"})
 
 
 def test_cli_keeps_what_is_there_and_a_failed_run_changes_nothing(tmp_path):

@@ -14,7 +14,9 @@ For one seed the generator builds a *truth model* and logs it the way the rig wo
 3. **Several loads and ramps.** Each load (kg) sets ``m_b``; each ramp is a wheel-speed
    ramp-and-hold (:class:`szdyn.drive.RampHold`) of ~4.5-5 s. The default ramps reach +pi,
    +2 pi and -pi rad/s (a negative ramp so that ``friction_asymmetry`` is observable; two
-   held speeds so that a viscous term is separable from Coulomb friction).
+   held speeds so that a viscous term is separable from Coulomb friction). ``--ramps`` sets
+   other profiles, each optionally ending in a stop (a deceleration to rest), to mimic a rig's
+   own protocol.
 4. **Initial wheel phase.** Each recording starts from rest with the wheel at a seeded random
    angle within one circle pitch (``q_w0 = default_wheel_offset() + U(0, 2 pi / N_c)``,
    recorded in ``truth.json``), as on a rig: the wheel stops wherever it stops. A fit model
@@ -88,6 +90,7 @@ import argparse
 import difflib
 import json
 import math
+import re
 import sys
 import time
 from dataclasses import dataclass
@@ -120,6 +123,9 @@ SAVE_DT = 1e-4
 #: coefficient may already come out e^3 = 20 times its nominal value
 MAX_PERTURB = 1.0
 
+#: a ramp's name, as it goes into its recording's file name (load1kg_NAME.csv)
+_RAMP_NAME = re.compile(r"[A-Za-z0-9_-]{1,40}")
+
 # random-stream ids (numpy.random.default_rng([seed, id]))
 _S_PERTURB, _S_EFFECT, _S_SPLIT, _S_SENSOR, _S_PHASE = 1, 2, 3, 100, 200
 
@@ -131,7 +137,8 @@ class SynthError(UserInputError):
 # --------------------------------------------------------------------------- ramps
 @dataclass(frozen=True)
 class RampSpec:
-    """A ramp-and-hold wheel-speed profile: ``omega = a t`` up to ``t_ramp``, then held.
+    """A ramp-and-hold wheel-speed profile: ``omega = a t`` up to ``t_ramp``, then held; with
+    ``t_stop > 0`` the wheel is then brought to rest at a constant rate over ``t_stop``.
 
     Attributes
     ----------
@@ -141,29 +148,43 @@ class RampSpec:
         Acceleration (rad/s^2), any sign; ``a < 0`` runs the band backwards.
     t_ramp, t_hold : float
         Ramp and hold durations (s).
+    t_stop : float
+        Duration of the deceleration to rest after the hold (s); 0 (default): the recording
+        ends in the hold, as the default ramps do. A stop crosses the low speeds again, slowing
+        down, where a run from rest only crosses them speeding up.
     """
 
     name: str
     a: float
     t_ramp: float
     t_hold: float
+    t_stop: float = 0.0
 
     @property
     def t_end(self) -> float:
-        return self.t_ramp + self.t_hold
+        return self.t_ramp + self.t_hold + self.t_stop
 
     @property
     def omega_hold(self) -> float:
         return self.a * self.t_ramp
 
     def drive(self):
-        from szdyn.drive import RampHold
+        from szdyn.drive import RampHold, Sampled, _distinct_times
 
-        return RampHold(a=self.a, t_ramp=self.t_ramp, t_hold=self.t_hold)
+        if self.t_stop == 0.0:
+            return RampHold(a=self.a, t_ramp=self.t_ramp, t_hold=self.t_hold)
+        w = self.omega_hold
+        # piecewise linear between the knots (Sampled interpolates them), at rest afterwards; a
+        # hold that rounding makes zero long is no hold, a stop in no time is refused
+        t, v = _distinct_times(np.array([0.0, self.t_ramp, self.t_ramp + self.t_hold, self.t_end]),
+                               np.array([0.0, w, w, 0.0]), f"ramp '{self.name}'")
+        return Sampled(t=t, omega=v)
 
     def to_dict(self) -> dict:
-        return {"name": self.name, "a": self.a, "t_ramp": self.t_ramp, "t_hold": self.t_hold,
-                "omega_hold": self.omega_hold, "t_end": self.t_end}
+        d = {"name": self.name, "a": self.a, "t_ramp": self.t_ramp, "t_hold": self.t_hold}
+        if self.t_stop:    # (absent for the default ramps: their truth.json is as before)
+            d["t_stop"] = self.t_stop
+        return {**d, "omega_hold": self.omega_hold, "t_end": self.t_end}
 
 
 DEFAULT_RAMPS = (
@@ -429,8 +450,18 @@ def synthesize(out_dir, effect: str = "none", amplitude=None, seed: int = 0,
     if not ramps or len({r.name for r in ramps}) != len(ramps):
         raise SynthError("ramps must be a non-empty sequence with distinct names")
     for r in ramps:
-        if not (math.isfinite(r.a) and r.t_ramp > 0 and r.t_hold >= 0):
-            raise SynthError(f"ramp '{r.name}': need finite a, t_ramp > 0, t_hold >= 0")
+        if not (isinstance(r.name, str) and _RAMP_NAME.fullmatch(r.name)):
+            # the name goes into a file name: no path separators, nothing a file system refuses
+            raise SynthError(f"ramp name {r.name!r}: use 1-40 letters, digits, '_' or '-'")
+        if not (math.isfinite(r.a) and r.a != 0 and math.isfinite(r.t_ramp) and r.t_ramp > 0
+                and math.isfinite(r.t_hold) and r.t_hold >= 0 and math.isfinite(r.t_stop) and r.t_stop >= 0):
+            raise SynthError(f"ramp '{r.name}': need finite a != 0 (rad/s^2), t_ramp > 0, t_hold >= 0 "
+                             f"and t_stop >= 0 (s), got a={r.a!r}, t_ramp={r.t_ramp!r}, "
+                             f"t_hold={r.t_hold!r}, t_stop={r.t_stop!r}")
+        try:
+            r.drive()
+        except ValueError as exc:   # times that rounding makes equal (a hold of 1e-300 s)
+            raise SynthError(f"ramp '{r.name}': {exc}") from None
     if not (math.isfinite(perturb) and 0 <= perturb <= MAX_PERTURB):
         raise SynthError(f"perturb (the coefficients' lognormal sigma) must be in [0, {MAX_PERTURB:g}], got "
                          f"{perturb!r}")
@@ -654,6 +685,55 @@ def _loads(text: str):
     return vals
 
 
+#: longest profile ``--ramps`` takes (s): a rig's runs last seconds; at the default 20 us step
+#: this is already 3e7 RK4 steps per recording
+MAX_RAMP_S = 600.0
+_RAMP_FIELDS = ("a", "t_ramp", "t_hold", "t_stop")
+
+
+def _ramps(text: str):
+    """``--ramps``: ``NAME:A:T_RAMP:T_HOLD[:T_STOP]`` entries, comma-separated."""
+    out = []
+    for k, entry in enumerate(text.split(","), 1):
+        parts = entry.strip().split(":")
+        if not 4 <= len(parts) <= 5:
+            raise argparse.ArgumentTypeError(
+                f"entry {k} {entry.strip()!r}: expected NAME:A:T_RAMP:T_HOLD[:T_STOP] (A in rad/s^2, "
+                f"times in s), e.g. up:1.5708:2:3 or stop:3.1416:1:2:1")
+        name, nums = parts[0].strip(), {}
+        if not _RAMP_NAME.fullmatch(name):
+            raise argparse.ArgumentTypeError(f"entry {k}: name {name!r}: use 1-40 letters, digits, '_' or '-' "
+                                             "(it names the recording files)")
+        for field, cell in zip(_RAMP_FIELDS, parts[1:]):
+            try:
+                nums[field] = float(cell)
+            except ValueError:
+                raise argparse.ArgumentTypeError(f"entry {k} ({name}): {field} {cell.strip()!r} is not a "
+                                                 "number") from None
+        r = RampSpec(name, **nums)
+        if not (math.isfinite(r.a) and r.a != 0):
+            raise argparse.ArgumentTypeError(f"entry {k} ({name}): a must be a finite, non-zero acceleration "
+                                             f"(rad/s^2; negative runs the band backwards), got {parts[1].strip()!r}")
+        for field in _RAMP_FIELDS[1:]:
+            v = getattr(r, field)
+            if not (math.isfinite(v) and (v > 0 if field == "t_ramp" else v >= 0)):
+                raise argparse.ArgumentTypeError(
+                    f"entry {k} ({name}): {field} must be {'> 0' if field == 't_ramp' else '>= 0'} s, "
+                    f"got {v!r}")
+        if r.t_end > MAX_RAMP_S:
+            raise argparse.ArgumentTypeError(f"entry {k} ({name}): lasts {r.t_end:g} s; at most "
+                                             f"{MAX_RAMP_S:g} s per profile")
+        try:
+            r.drive()
+        except ValueError as exc:   # a stop so short that rounding makes it take no time
+            raise argparse.ArgumentTypeError(f"entry {k}: {exc}") from None
+        if r.name in {o.name for o in out}:
+            raise argparse.ArgumentTypeError(f"entry {k}: the name {name!r} is used twice (it names the "
+                                             "recording files)")
+        out.append(r)
+    return tuple(out)
+
+
 def _build_parser() -> argparse.ArgumentParser:
     ap = Parser("synth", prog="python -m szdyn.run synth",
                  description="Write synthetic recordings (CSV + manifest.toml + truth.json) from a "
@@ -663,6 +743,12 @@ def _build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--amplitude", type=float, help="effect amplitude (default: drawn from its realistic range)")
     ap.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     ap.add_argument("--loads", type=_loads, help="loads in kg, comma-separated (default 0.5,1,1.5)")
+    ap.add_argument("--ramps", type=_ramps, metavar="NAME:A:T_RAMP:T_HOLD[:T_STOP],...",
+                    help="wheel-speed profiles, one recording per load and profile: accelerate at A "
+                         "rad/s^2 for T_RAMP s, hold T_HOLD s, then (T_STOP > 0) decelerate to rest in "
+                         "T_STOP s; comma-separated, at most 600 s each (default, rounded: "
+                         "up_pi:1.5708:2:3,up_2pi:3.1416:2:2.5,down_pi:-1.2566:2.5:2.5; with --quick "
+                         "up:6.2832:0.25:0.25,down:-6.2832:0.25:0.25)")
     ap.add_argument("--n-circles", type=int, help="N_c of the truth model (default 100; 16 with --quick)")
     ap.add_argument("--perturb", type=float, default=0.1,
                     help="lognormal sigma of the coefficient perturbation, 0..1 (default 0.1)")
@@ -741,6 +827,8 @@ def synth_command(argv) -> int:
         kw["n_circles"] = args.n_circles
     if args.loads is not None:
         kw["loads_kg"] = tuple(args.loads)
+    if args.ramps is not None:
+        kw["ramps"] = args.ramps
     synthesize(args.out, effect=args.effect, amplitude=args.amplitude, seed=args.seed,
                perturb=args.perturb, dt=args.dt, save_dt=max(SAVE_DT, args.dt),
                torque_constant=args.current, verbose=not args.quiet, **kw)
