@@ -61,6 +61,21 @@ def truth_primary(truth: dict, cid: str):
     return src.get(prim)
 
 
+def ramp_dicts(ramps: str | None) -> list:
+    """The profiles ``synth --ramps ramps`` writes (as in its truth.json); None: its defaults."""
+    from szdyn.synth import DEFAULT_RAMPS, _ramps
+
+    return [r.to_dict() for r in (DEFAULT_RAMPS if ramps is None else _ramps(ramps))]
+
+
+def describe_ramps(ramps: str | None) -> str:
+    if ramps is None:
+        return "ramps to +pi, +2 pi, -pi rad/s"
+    return "the profiles " + ", ".join(
+        f"{r['name']} (to {r['omega_hold']:.3g} rad/s in {r['t_ramp']:g} s, held {r['t_hold']:g} s"
+        + (f", stopped in {r['t_stop']:g} s)" if r.get("t_stop") else ")") for r in ramp_dicts(ramps))
+
+
 def copy_kept_runs(source: Path, case: Path) -> None:
     """Copy a finished case's recordings and kept model runs (``source``, a case directory of a
     grid run with ``--keep-runs``) into ``case``, unless it already holds them."""
@@ -77,14 +92,14 @@ def copy_kept_runs(source: Path, case: Path) -> None:
 
 
 def run_case(work: Path, effect: str, seed: int, diag_args, current: float | None = None,
-             runs_from: Path | None = None) -> dict:
+             runs_from: Path | None = None, ramps: str | None = None) -> dict:
     case = work / f"{effect}-{seed}"
     data, out = case / "data", case / "diagnosis"
     replay = runs_from is not None and not (out / "diagnosis.json").is_file()
     if replay:
         copy_kept_runs(runs_from / case.name, case)
     if not (data / "truth.json").is_file():
-        more = [] if current is None else ["--current", repr(current)]
+        more = ([] if current is None else ["--current", repr(current)]) + ([] if ramps is None else ["--ramps", ramps])
         # --overwrite: the work directory is the grid's own; a set without truth.json is unfinished
         subprocess.run([sys.executable, "-m", "szdyn.run", "synth", "--out", str(data), "--effect", effect,
                         "--seed", str(seed), "--loads", "0.5,1", "--dt", "5e-5", "--quiet", "--overwrite",
@@ -94,6 +109,11 @@ def run_case(work: Path, effect: str, seed: int, diag_args, current: float | Non
         raise SystemExit(f"{data}: recordings {'without' if current is not None else 'with'} a current "
                          f"column, but --current is {'given' if current is not None else 'not given'}; "
                          "use another --work")
+    made = json.loads((data / "truth.json").read_text())["ramps"]
+    if made != ramp_dicts(ramps):
+        # nor recordings of two protocols
+        raise SystemExit(f"{data}: recordings of the profiles {[r['name'] for r in made]}, not those of "
+                         f"--ramps {ramps or '(default)'}; use another --work")
     if not (out / "diagnosis.json").is_file():
         t = time.perf_counter()
         subprocess.run([sys.executable, "-m", "szdyn.run", "diagnose", str(data / "manifest.toml"),
@@ -206,10 +226,12 @@ def write_md(results, path: Path, args):
     if args.preface is not None and args.preface.is_file():
         # where the tool stands over every grid run so far (hand-written, kept across re-runs)
         L += [args.preface.read_text().rstrip(), "", "## This grid", ""]
-    L += ["Each case: `synth` writes 6 recordings (loads 0.5 and 1 kg x ramps to +pi, +2 pi, -pi rad/s; "
+    L += [f"Each case: `synth` writes {2 * len(ramp_dicts(args.ramps))} recordings (loads 0.5 and 1 kg x "
+          f"{describe_ramps(args.ramps)}; "
          "N_c = 100; coefficients perturbed by a seeded lognormal, sigma 0.1; each recording from its "
          "own random wheel phase; RK4 at 50 us, 10 us for wheel_band_traction; 4096/2048 "
-         "count encoders with noise, a 500 Hz logger with jitter and dropped rows), 2 of them held out; "
+         "count encoders with noise, a 500 Hz logger with jitter and dropped rows), "
+         f"{max(1, round(2 * len(ramp_dicts(args.ramps)) / 3))} of them held out; "
          "`diagnose` runs as a user would (it never reads `truth.json`); the result is scored against "
          "`truth.json`. Amplitudes are drawn from each effect's realistic range (`szdyn.synth`).", "",
          "## Summary", "",
@@ -286,10 +308,17 @@ def main(argv=None):
                          "gone: each case of this grid that --work has not finished is taken from it "
                          "as it was scored then (not checked against --diagnose-args or --current: say "
                          "in the reading what they were)")
+    ap.add_argument("--ramps", default=None, metavar="NAME:A:T_RAMP:T_HOLD[:T_STOP],...",
+                    help="the recordings' wheel-speed profiles (synth --ramps; default synth's three "
+                         "ramp-and-holds): another protocol than the one the tool was developed on")
     ap.add_argument("--current", type=float, metavar="KT", default=None,
                     help="the recordings also log the motor current (synth --current KT, N m/A), and "
                          "the manifest gives KT: the diagnosis compares the motor torque too")
     args = ap.parse_args(argv)
+    try:
+        ramp_dicts(args.ramps)
+    except argparse.ArgumentTypeError as exc:
+        ap.error(f"--ramps: {exc}")
     seeds = [int(s) for s in args.seeds.split(",") if s]
     effect_cases = [(e, s) for s in seeds for e in args.effects.split(",") if e]
     null_cases = [("none", int(s)) for s in args.null_seeds.split(",") if s]
@@ -330,7 +359,8 @@ def main(argv=None):
                       file=sys.stderr, flush=True)
                 continue
         print(f"[{k}/{len(cases)}] {e} seed {s}", file=sys.stderr, flush=True)
-        results.append(run_case(args.work, e, s, args.diagnose_args.split(), args.current, args.runs_from))
+        results.append(run_case(args.work, e, s, args.diagnose_args.split(), args.current, args.runs_from,
+                                args.ramps))
         write_json(args.json, results)
         write_md(results, args.out, args)
     return 0

@@ -9,11 +9,12 @@ import pytest
 from cases import load_bench
 
 
-def _case(work, effect, seed, selected, next_recording):
+def _case(work, effect, seed, selected, next_recording, ramps=None):
     case = work / f"{effect}-{seed}"
     (case / "data").mkdir(parents=True)
     (case / "diagnosis").mkdir()
-    (case / "data" / "truth.json").write_text(json.dumps({"amplitude": None}))
+    made = load_bench("diagnosis_grid").ramp_dicts(ramps)
+    (case / "data" / "truth.json").write_text(json.dumps({"amplitude": None, "ramps": made}))
     (case / "data" / "manifest.toml").write_text('[[recording]]\nfile = "a.csv"\nload_kg = 1.0\n')
     d = {"selected": selected, "verdict": selected[0] if selected else "none", "effects": [],
          "fit": {"before": {"heldout_rmse": 0.03}, "after": {"heldout_rmse": 0.01}}, "noise_floor": 0.01}
@@ -97,3 +98,24 @@ def test_the_grid_diagnoses_again_from_another_grids_kept_runs(tmp_path, monkeyp
     _case(src, "load_lift", 3, ["load_lift"], None)
     with pytest.raises(SystemExit, match="load_lift-3.*--keep-runs"):
         grid.run_case(work, "load_lift", 3, [], runs_from=src)
+
+
+def test_the_grid_keeps_one_protocol_per_work_directory(tmp_path, capsys):
+    """``--ramps`` (synth's profiles): recordings of another protocol in ``--work`` are refused,
+    a bad profile before any case runs, and the report says which profiles were recorded."""
+    grid = load_bench("diagnosis_grid")
+    stops = "up:1.5708:2:2:1.5,down:-1.2566:2.5:2:2"
+    _case(tmp_path, "none", 1, [], None, ramps=stops)
+    with pytest.raises(SystemExit, match=r"profiles \['up', 'down'\], not those of --ramps \(default\)"):
+        grid.run_case(tmp_path, "none", 1, [])
+    assert grid.run_case(tmp_path, "none", 1, [], ramps=stops)["correct"]
+    assert grid.describe_ramps(stops) == ("the profiles up (to 3.14 rad/s in 2 s, held 2 s, stopped in 1.5 s), "
+                                          "down (to -3.14 rad/s in 2.5 s, held 2 s, stopped in 2 s)")
+    with pytest.raises(SystemExit):
+        grid.main(["--work", str(tmp_path), "--ramps", "up:1:1", "--score-only"])
+    assert "--ramps: entry 1 'up:1:1': expected NAME:A:T_RAMP:T_HOLD" in capsys.readouterr().err
+    md, js = tmp_path / "grid.md", tmp_path / "grid.json"
+    assert grid.main(["--work", str(tmp_path), "--ramps", stops, "--score-only", "--seeds", "",
+                      "--null-seeds", "1", "--out", str(md), "--json", str(js), "--reading", "/dev/null"]) == 0
+    assert "Each case: `synth` writes 4 recordings (loads 0.5 and 1 kg x the profiles up (to 3.14" in md.read_text()
+    assert "1 of them held out" in md.read_text()
