@@ -841,17 +841,28 @@ def _runs():
             _Rec("b_down", "heldout", 1.0, down)]
 
 
-def test_exchange_pairs_hold_out_a_run_of_the_same_kind_at_another_load():
+def test_exchange_pairs_hold_out_a_run_of_the_same_kind_without_hiding_a_condition():
     recs = _runs()
-    # same direction and speed, other load; then the nearest speed
-    assert exchange_pairs(recs, ["b_down"]) == {"b_down": "a_down"}
-    assert exchange_pairs(recs, ["a_fast", "b_down"]) == {"a_fast": "b_fast", "b_down": "a_down"}
+    # the only backward run at 1 kg goes into the fit; holding out a_down instead would hide the
+    # backward travel at 0.5 kg, a_up the forward one there (a_fast is held out): b_up, the
+    # nearest speed among those that hide nothing
+    assert exchange_pairs(recs, ["b_down"]) == {"b_down": "b_up"}
+    # same direction and speed, other load, where that hides nothing more than the split did
+    # (b_down's backward 1 kg stays hidden until it is exchanged itself)
+    assert exchange_pairs(recs, ["a_fast", "b_down"]) == {"a_fast": "b_fast", "b_down": "a_up"}
     new = exchanged(recs, {"b_down": "a_down"})
     assert [(r.name, r.role) for r in new] == [("a_up", "fit"), ("b_up", "fit"), ("b_fast", "fit"),
                                                ("b_down", "fit"), ("a_down", "heldout"), ("a_fast", "heldout")]
     # a fit recording is used once, and one always stays fitted
     two = [recs[0], recs[1], recs[4], recs[5]]
     assert exchange_pairs(two, ["a_fast", "b_down"]) == {"a_fast": "a_up"}
+    # the grid's design, one forward run per load held out: the run of the same speed at the
+    # other load (1_up) would leave no forward 1 kg run in the fit (load_lift seed 20, named
+    # friction_asymmetry so): the other forward run at the same load goes instead
+    grid = _grid([(0.5, "up"), (0.5, "fast"), (0.5, "down"), (1, "up"), (1, "fast"), (1, "down")])
+    grid = with_heldout(grid, ["0.5_up", "1_fast"])
+    assert exchange_pairs(grid, ["0.5_up"]) == {"0.5_up": "0.5_fast"}
+    assert exchange_pairs(grid, ["1_fast"]) == {"1_fast": "1_up"}
 
 
 def _grid(spec):
@@ -911,19 +922,19 @@ class _ScriptedDiagnosis(Diagnosis):
 def test_fit_exchanges_the_split_only_when_a_heldout_recording_shows_what_the_fit_ones_hide():
     # "none" with a held-out run far beyond the floor: a second pass with it fitted answers
     d = _ScriptedDiagnosis([("none", {"b_down": 18.0, "a_fast": 2.0}), ("selected", {})]).fit(_runs())
-    assert d.seen == [{"a_fast", "b_down"}, {"a_fast", "a_down"}]
-    assert d.verdict_ == "selected" and d.first_split_["exchanged"] == {"b_down": "a_down"}
+    assert d.seen == [{"a_fast", "b_down"}, {"a_fast", "b_up"}]
+    assert d.verdict_ == "selected" and d.first_split_["exchanged"] == {"b_down": "b_up"}
     assert d.first_split_["verdict"] == "none" and d.n_runs_ == 20 and d.timings_["first_split"] == 1.0
     # a named effect whose model misses a held-out run: the second pass, naming one, is the answer
     d = _ScriptedDiagnosis([("selected", {"b_down": 26.6}), ("selected", {})]).fit(_runs())
-    assert d.seen == [{"a_fast", "b_down"}, {"a_fast", "a_down"}] and d.unused_split_ is None
+    assert d.seen == [{"a_fast", "b_down"}, {"a_fast", "b_up"}] and d.unused_split_ is None
     assert d.first_split_["verdict"] == "selected" and d.first_split_["selected"] == ["slider_viscous"]
     # ... naming none, it is only a record: the first answer stands, with its own state
     d = _ScriptedDiagnosis([("selected", {"b_down": 26.6}), ("unexplained", {})]).fit(_runs())
     assert len(d.seen) == 2 and d.first_split_ is None
     assert d.verdict_ == "selected" and d.heldout_beyond_floor_ == {"b_down": 26.6}
     assert {r.name for r in d.recordings_ if r.role != "fit"} == {"a_fast", "b_down"}
-    assert d.unused_split_["verdict"] == "unexplained" and d.unused_split_["exchanged"] == {"b_down": "a_down"}
+    assert d.unused_split_["verdict"] == "unexplained" and d.unused_split_["exchanged"] == {"b_down": "b_up"}
     assert d.n_runs_ == 20 and d.timings_["unused_split"] == 1.0
     # within max_remaining floors, after "unexplained", or switched off: one pass
     for script, kw in [([("none", {"b_down": 4.9})], {}), ([("unexplained", {"b_down": 18.0})], {}),
