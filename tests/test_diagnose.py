@@ -1046,8 +1046,8 @@ def test_fit_weights_the_recordings_only_when_nothing_is_named_and_their_floors_
         assert d.weighted_seen == [False] and d.weighting_["other_pass"] is None
     # after a split exchange, the weighted pass keeps the exchanged roles (and the exchange record)
     d = _ScriptedDiagnosis([("none", {"b_down": 18.0}, wide), ("none", {}, wide), ("selected", {})]).fit(_runs())
-    assert d.weighted_seen == [False, False, True] and d.seen[2] == d.seen[1] == {"a_fast", "a_down"}
-    assert d.verdict_ == "selected" and d.first_split_["exchanged"] == {"b_down": "a_down"}
+    assert d.weighted_seen == [False, False, True] and d.seen[2] == d.seen[1] == {"a_fast", "b_up"}
+    assert d.verdict_ == "selected" and d.first_split_["exchanged"] == {"b_down": "b_up"}
     d = _ScriptedDiagnosis([("none", {}, wide)], weighting="always").fit(_runs())
     assert d.weighted_seen == [True] and d.weighting_["weighted"]
     with pytest.raises(ValueError, match="weighting"):
