@@ -244,7 +244,7 @@ def test_unknown_effect_names_it_and_suggests(tmp_path):
     (["--out", " "], "--out: expected a directory, got an empty string"),
     # --ramps: each entry and field named
     (["--out", "X", "--ramps", "up:1:2"], r"entry 1 'up:1:2': expected NAME:A:T_RAMP:T_HOLD\[:T_STOP\]"),
-    (["--out", "X", "--ramps", "up:1:1:1,../x:1:1:1"], r"entry 2: name '../x': use 1-40 letters"),
+    (["--out", "X", "--ramps", "up:1:1:1,../x:1:1:1"], r"entry 2 \(../x\): the name: use 1-40 letters"),
     (["--out", "X", "--ramps", "up:1:1:one"], r"entry 1 \(up\): t_hold 'one' is not a number"),
     (["--out", "X", "--ramps", "up:0:1:1"], r"entry 1 \(up\): a must be a finite, non-zero acceleration"),
     (["--out", "X", "--ramps", "up:nan:1:1"], r"a must be a finite, non-zero"),
@@ -253,7 +253,7 @@ def test_unknown_effect_names_it_and_suggests(tmp_path):
     (["--out", "X", "--ramps", "up:1:1:1:inf"], r"t_stop must be >= 0 s, got inf"),
     (["--out", "X", "--ramps", "up:1:1:600"], r"entry 1 \(up\): lasts 601 s; at most 600 s per profile"),
     (["--out", "X", "--ramps", "up:1:1:1,up:2:1:1"], r"entry 2: the name 'up' is used twice"),
-    (["--out", "X", "--ramps", "up:1:1:1:1e-300"], r"entry 1: ramp 'up': the speed changes from 1 to 0 rad/s in no time"),
+    (["--out", "X", "--ramps", "up:1:1:1:1e-300"], r"entry 1 \(up\): ramp 'up': the speed changes from 1 to 0 rad/s in no time"),
 ])
 def test_cli_mistakes_are_user_errors(tmp_path, argv, match):
     argv = [str(tmp_path / a) if a.startswith("X") else a for a in argv]
@@ -302,9 +302,9 @@ def test_cli_ramps_with_a_stop(tmp_path):
     # the default ramps' truth.json has no t_stop (as before the option)
     assert all("t_stop" not in r.to_dict() for r in DEFAULT_RAMPS)
     # the library refuses what the CLI refuses
-    with pytest.raises(SynthError, match=r"ramp name '\.\./x'"):
+    with pytest.raises(SynthError, match=r"ramp '\.\./x': the name: use 1-40 letters"):
         synthesize(tmp_path / "x", ramps=[("../x", 1.0, 1.0, 1.0)], **{k: v for k, v in QUICK.items() if k != "ramps"})
-    with pytest.raises(SynthError, match=r"ramp 'z': need finite a != 0"):
+    with pytest.raises(SynthError, match=r"ramp 'z': a must be a finite, non-zero acceleration"):
         synthesize(tmp_path / "x", ramps=[("z", 0.0, 1.0, 1.0)], **{k: v for k, v in QUICK.items() if k != "ramps"})
 
 

@@ -339,6 +339,24 @@ def perturbed_coefficients(perturb: float, seed: int, n_circles: int = 100) -> t
     return {n: vals[n] for n in PERTURBED}, f
 
 
+def _ramp_problem(r) -> str | None:
+    """What is wrong with a profile (checked by :func:`synthesize` and ``--ramps``), or None."""
+    if not (isinstance(r.name, str) and _RAMP_NAME.fullmatch(r.name)):
+        # the name goes into a file name: no path separators, nothing a file system refuses
+        return "the name: use 1-40 letters, digits, '_' or '-' (it names the recording files)"
+    if not (math.isfinite(r.a) and r.a != 0):
+        return f"a must be a finite, non-zero acceleration (rad/s^2; negative runs the band backwards), got {r.a!r}"
+    for field in ("t_ramp", "t_hold", "t_stop"):
+        v = getattr(r, field)
+        if not (math.isfinite(v) and (v > 0 if field == "t_ramp" else v >= 0)):
+            return f"{field} must be {'> 0' if field == 't_ramp' else '>= 0'} s, got {v!r}"
+    try:
+        r.drive()
+    except ValueError as exc:   # times that rounding makes equal (a stop of 1e-300 s)
+        return str(exc)
+    return None
+
+
 # --------------------------------------------------------------------------- generator
 def _fmt_load(x: float) -> str:
     return f"{x:g}".replace(".", "p")
@@ -450,18 +468,9 @@ def synthesize(out_dir, effect: str = "none", amplitude=None, seed: int = 0,
     if not ramps or len({r.name for r in ramps}) != len(ramps):
         raise SynthError("ramps must be a non-empty sequence with distinct names")
     for r in ramps:
-        if not (isinstance(r.name, str) and _RAMP_NAME.fullmatch(r.name)):
-            # the name goes into a file name: no path separators, nothing a file system refuses
-            raise SynthError(f"ramp name {r.name!r}: use 1-40 letters, digits, '_' or '-'")
-        if not (math.isfinite(r.a) and r.a != 0 and math.isfinite(r.t_ramp) and r.t_ramp > 0
-                and math.isfinite(r.t_hold) and r.t_hold >= 0 and math.isfinite(r.t_stop) and r.t_stop >= 0):
-            raise SynthError(f"ramp '{r.name}': need finite a != 0 (rad/s^2), t_ramp > 0, t_hold >= 0 "
-                             f"and t_stop >= 0 (s), got a={r.a!r}, t_ramp={r.t_ramp!r}, "
-                             f"t_hold={r.t_hold!r}, t_stop={r.t_stop!r}")
-        try:
-            r.drive()
-        except ValueError as exc:   # times that rounding makes equal (a hold of 1e-300 s)
-            raise SynthError(f"ramp '{r.name}': {exc}") from None
+        problem = _ramp_problem(r)
+        if problem:
+            raise SynthError(f"ramp {r.name!r}: {problem}")
     if not (math.isfinite(perturb) and 0 <= perturb <= MAX_PERTURB):
         raise SynthError(f"perturb (the coefficients' lognormal sigma) must be in [0, {MAX_PERTURB:g}], got "
                          f"{perturb!r}")
@@ -701,9 +710,6 @@ def _ramps(text: str):
                 f"entry {k} {entry.strip()!r}: expected NAME:A:T_RAMP:T_HOLD[:T_STOP] (A in rad/s^2, "
                 f"times in s), e.g. up:1.5708:2:3 or stop:3.1416:1:2:1")
         name, nums = parts[0].strip(), {}
-        if not _RAMP_NAME.fullmatch(name):
-            raise argparse.ArgumentTypeError(f"entry {k}: name {name!r}: use 1-40 letters, digits, '_' or '-' "
-                                             "(it names the recording files)")
         for field, cell in zip(_RAMP_FIELDS, parts[1:]):
             try:
                 nums[field] = float(cell)
@@ -711,22 +717,12 @@ def _ramps(text: str):
                 raise argparse.ArgumentTypeError(f"entry {k} ({name}): {field} {cell.strip()!r} is not a "
                                                  "number") from None
         r = RampSpec(name, **nums)
-        if not (math.isfinite(r.a) and r.a != 0):
-            raise argparse.ArgumentTypeError(f"entry {k} ({name}): a must be a finite, non-zero acceleration "
-                                             f"(rad/s^2; negative runs the band backwards), got {parts[1].strip()!r}")
-        for field in _RAMP_FIELDS[1:]:
-            v = getattr(r, field)
-            if not (math.isfinite(v) and (v > 0 if field == "t_ramp" else v >= 0)):
-                raise argparse.ArgumentTypeError(
-                    f"entry {k} ({name}): {field} must be {'> 0' if field == 't_ramp' else '>= 0'} s, "
-                    f"got {v!r}")
+        problem = _ramp_problem(r)
+        if problem:
+            raise argparse.ArgumentTypeError(f"entry {k} ({name}): {problem}")
         if r.t_end > MAX_RAMP_S:
             raise argparse.ArgumentTypeError(f"entry {k} ({name}): lasts {r.t_end:g} s; at most "
                                              f"{MAX_RAMP_S:g} s per profile")
-        try:
-            r.drive()
-        except ValueError as exc:   # a stop so short that rounding makes it take no time
-            raise argparse.ArgumentTypeError(f"entry {k}: {exc}") from None
         if r.name in {o.name for o in out}:
             raise argparse.ArgumentTypeError(f"entry {k}: the name {name!r} is used twice (it names the "
                                              "recording files)")
