@@ -253,7 +253,7 @@ def test_unknown_effect_names_it_and_suggests(tmp_path):
     (["--out", "X", "--ramps", "up:1:1:1:inf"], r"t_stop must be >= 0 s, got inf"),
     (["--out", "X", "--ramps", "up:1:1:600"], r"entry 1 \(up\): lasts 601 s; at most 600 s per profile"),
     (["--out", "X", "--ramps", "up:1:1:1,up:2:1:1"], r"entry 2: the name 'up' is used twice"),
-    (["--out", "X", "--ramps", "up:1:1:1:1e-300"], r"entry 1 \(up\): ramp 'up': the speed changes from 1 to 0 rad/s in no time"),
+    (["--out", "X", "--ramps", "up:1:1:1:1e-300"], r"entry 1 \(up\): t_stop: the speed changes from 1 to 0 rad/s in no time"),
 ])
 def test_cli_mistakes_are_user_errors(tmp_path, argv, match):
     argv = [str(tmp_path / a) if a.startswith("X") else a for a in argv]
@@ -306,6 +306,9 @@ def test_cli_ramps_with_a_stop(tmp_path):
         synthesize(tmp_path / "x", ramps=[("../x", 1.0, 1.0, 1.0)], **{k: v for k, v in QUICK.items() if k != "ramps"})
     with pytest.raises(SynthError, match=r"ramp 'z': a must be a finite, non-zero acceleration"):
         synthesize(tmp_path / "x", ramps=[("z", 0.0, 1.0, 1.0)], **{k: v for k, v in QUICK.items() if k != "ramps"})
+    # the profile named once: "ramp 'z': t_stop: ...", not "ramp 'z': ramp 'z': ..."
+    with pytest.raises(SynthError, match=r"^ramp 'z': t_stop: the speed changes from 1 to 0 rad/s in no time"):
+        synthesize(tmp_path / "x", ramps=[("z", 1.0, 1.0, 1.0, 1e-300)], **{k: v for k, v in QUICK.items() if k != "ramps"})
 
 
 def test_cli_keeps_what_is_there_and_a_failed_run_changes_nothing(tmp_path):

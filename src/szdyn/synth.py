@@ -175,9 +175,11 @@ class RampSpec:
             return RampHold(a=self.a, t_ramp=self.t_ramp, t_hold=self.t_hold)
         w = self.omega_hold
         # piecewise linear between the knots (Sampled interpolates them), at rest afterwards; a
-        # hold that rounding makes zero long is no hold, a stop in no time is refused
+        # hold that rounding makes zero long is no hold, a stop in no time is refused. Only the
+        # stop can take no time with a change of speed (t_ramp > 0 keeps the first two knots
+        # apart), so the message names t_stop; the callers name the profile
         t, v = _distinct_times(np.array([0.0, self.t_ramp, self.t_ramp + self.t_hold, self.t_end]),
-                               np.array([0.0, w, w, 0.0]), f"ramp '{self.name}'")
+                               np.array([0.0, w, w, 0.0]), "t_stop")
         return Sampled(t=t, omega=v)
 
     def to_dict(self) -> dict:
