@@ -1,0 +1,46 @@
+"""bench/bump_sensitivity.py: the model points it compares a recording with, and its errors on
+a directory that is not a grid case."""
+
+import math
+
+import pytest
+
+from cases import load_bench
+
+TRUTH = {"k_c": 0.05, "b_c": 0.0075, "k_imp": 4e12, "b_imp": 2e13, "mu_s": 0.3, "mu_k": 0.25,
+         "mu_st": 0.06, "v_st": 0.2}
+PITCH = 2.0 * math.pi / 100
+
+
+def test_points_move_one_thing_each_from_the_truth():
+    bench = load_bench("bump_sensitivity")
+    pts = bench._points(TRUTH, 0.04, PITCH, None, "a.csv")
+    base = pts["truth"]
+    assert base == {**TRUTH, "q_w0": 0.04}
+    for label, name, factor in (("k_c x1.01", "k_c", 1.01), ("mu_k x1.01", "mu_k", 1.01)):
+        moved = {k for k in base if pts[label][k] != base[k]}
+        assert moved == {name}
+        assert pts[label][name] == pytest.approx(base[name] * factor, rel=1e-12)
+    phase = pts["phase +0.03125 pitch"]
+    assert {k for k in base if phase[k] != base[k]} == {"q_w0"}
+    assert phase["q_w0"] - 0.04 == pytest.approx(PITCH / 32, rel=1e-12)
+    assert not any(k.startswith("calibrated") for k in pts)
+
+
+def test_points_take_the_diagnosis_calibration_and_its_phase():
+    bench = load_bench("bump_sensitivity")
+    cal = {"k_c": 0.048, "b_c": 0.007, "k_imp": 3.8e12, "mu_s": 0.4, "mu_k": 0.29}
+    diag = {"calibrated": cal, "wheel_phase": {"recordings": {"a.csv": {"q_w0": 0.06}}}}
+    pts = bench._points(TRUTH, 0.04, PITCH, diag, "a.csv")
+    assert pts["calibrated, truth phase"] == {**cal, "q_w0": 0.04}
+    assert pts["calibrated, estimated phase"] == {**cal, "q_w0": 0.06}
+    # a recording whose phase the diagnosis did not estimate: the truth phase only
+    pts = bench._points(TRUTH, 0.04, PITCH, diag, "b.csv")
+    assert "calibrated, estimated phase" not in pts and "calibrated, truth phase" in pts
+
+
+def test_a_directory_that_is_not_a_grid_case_is_named(tmp_path):
+    bench = load_bench("bump_sensitivity")
+    with pytest.raises(SystemExit) as exc:
+        bench.main([str(tmp_path), "load0p5kg"])
+    assert str(tmp_path) in str(exc.value) and "truth.json" in str(exc.value)
