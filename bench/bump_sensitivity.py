@@ -22,7 +22,10 @@ the compared feature (smoothed band speed) against the model run
   phase it estimated;
 
 and, for the two 1 % changes, how much of the change in the model's speed is slow (its 0.5 s
-running mean) and how it grows over the recording (RMS per 0.5 s).
+running mean) and how it grows over the recording (RMS per 0.5 s). ``--without-effect`` makes
+every model point without the concealed effect (the "truth" is then the base truth, which no
+longer matches the recording where the effect shows): whether the bumps' sensitivity is the
+effect's or the coefficients'.
 """
 from __future__ import annotations
 
@@ -71,6 +74,8 @@ def main(argv=None) -> int:
     ap.add_argument("case", type=Path, help="grid case directory (with data/truth.json)")
     ap.add_argument("recordings", nargs="+", help="recording names (or their beginnings)")
     ap.add_argument("--json", type=Path, default=None, help="write the measurements here")
+    ap.add_argument("--without-effect", action="store_true",
+                    help="leave the concealed effect out of the truth (do its bumps come from it?)")
     args = ap.parse_args(argv)
     data = args.case / "data"
     try:
@@ -81,8 +86,9 @@ def main(argv=None) -> int:
     dpath = args.case / "diagnosis" / "diagnosis.json"
     diagnosis = json.loads(dpath.read_text()) if dpath.is_file() else None
     truth = {k: v["value"] for k, v in truth_doc["perturbed"].items()}
-    truth.update(truth_doc.get("effect_parameters", {}))
-    if truth_doc.get("effect_sensor"):
+    if not args.without_effect:
+        truth.update(truth_doc.get("effect_parameters", {}))
+    if truth_doc.get("effect_sensor") and not args.without_effect:
         raise SystemExit(f"{args.case}: a sensor effect ({truth_doc['effect']}); this check is of the model's bumps")
     q_true = {r["file"]: r["q_w0"] for r in truth_doc["recordings"]}
     recs = prepare(manifest)
@@ -115,7 +121,7 @@ def main(argv=None) -> int:
             print(f"  change with {k:14s} rms {v['rms']:.4f}, slow part {v['slow_rms']:.4f} rad/s; per "
                   f"{SLOW_S:g} s: {' '.join(f'{x:.3f}' for x in v['rms_per_window'])}")
     if args.json is not None:
-        write_json(args.json, {"case": str(args.case), "step": STEP, "phase_step_pitch": PHASE_STEP,
+        write_json(args.json, {"case": str(args.case), "without_effect": args.without_effect, "step": STEP, "phase_step_pitch": PHASE_STEP,
                                "slow_window_s": SLOW_S, "units": "rad/s", "recordings": out})
     return 0
 
