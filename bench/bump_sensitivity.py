@@ -121,8 +121,9 @@ def main(argv=None) -> int:
             print(f"  change with {k:14s} rms {v['rms']:.4f}, slow part {v['slow_rms']:.4f} rad/s; per "
                   f"{SLOW_S:g} s: {' '.join(f'{x:.3f}' for x in v['rms_per_window'])}")
     if args.json is not None:
-        write_json(args.json, {"case": str(args.case), "without_effect": args.without_effect, "step": STEP, "phase_step_pitch": PHASE_STEP,
-                               "slow_window_s": SLOW_S, "units": "rad/s", "recordings": out})
+        write_json(args.json, {"case": str(args.case), "without_effect": args.without_effect, "step": STEP,
+                               "phase_step_pitch": PHASE_STEP, "slow_window_s": SLOW_S, "units": "rad/s",
+                               "recordings": out})
     return 0
 
 

@@ -44,3 +44,30 @@ def test_a_directory_that_is_not_a_grid_case_is_named(tmp_path):
     with pytest.raises(SystemExit) as exc:
         bench.main([str(tmp_path), "load0p5kg"])
     assert str(tmp_path) in str(exc.value) and "truth.json" in str(exc.value)
+
+
+def _measured(*changes):
+    return {"recordings": [{"change": {"k_c x1.01": {"rms": r, "slow_rms": s}}} for r, s in changes]}
+
+
+def test_a_seeds_sensitivity_is_the_fast_part_of_its_worst_run():
+    regime = load_bench("bump_regime")
+    assert regime.sensitivity(_measured((0.05, 0.03), (0.02, 0.0))) == pytest.approx(0.04, rel=1e-12)
+    # a change all slow (a slip threshold) is not bumping
+    assert regime.sensitivity(_measured((0.13, 0.13))) == 0.0
+
+
+def test_the_tally_splits_named_cases_by_kind_and_period():
+    regime = load_bench("bump_regime")
+    cases = [{"effect": "slider_stribeck", "seed": 20, "correct": False},
+             {"effect": "slider_stribeck", "seed": 30, "correct": True},
+             {"effect": "slider_stribeck", "seed": 31, "correct": False},
+             {"effect": "encoder_delay", "seed": 31, "correct": True},
+             {"effect": "none", "seed": 70, "correct": True},          # nulls are not counted
+             {"effect": "encoder_delay", "seed": 99, "correct": True}]  # no measurement: left out
+    per, total = regime.tally(cases, {20: 0.05, 30: 0.0002, 31: 0.03})
+    assert per["slider_stribeck/late"] == {"bumping_named": 0, "bumping_cases": 1,
+                                           "calm_named": 1, "calm_cases": 1}
+    assert per["slider_stribeck/early"]["bumping_cases"] == 1
+    assert total["late"] == {"bumping_named": 1, "bumping_cases": 2, "calm_named": 1, "calm_cases": 1}
+    assert sum(t["bumping_cases"] + t["calm_cases"] for t in total.values()) == 4
