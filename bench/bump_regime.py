@@ -21,7 +21,6 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import subprocess
 import sys
 from collections import defaultdict
 from pathlib import Path
@@ -31,6 +30,7 @@ sys.path.insert(0, str(ROOT / "src"))
 sys.path.insert(0, str(ROOT / "bench"))
 
 import bump_sensitivity  # noqa: E402
+import diagnosis_grid  # noqa: E402
 import oos_summary  # noqa: E402
 from szdyn.io import write_json  # noqa: E402
 
@@ -44,9 +44,8 @@ RECORDINGS = ("load0p5kg_up_pi", "load0p5kg_up_2pi")
 def sensitivity(measured: dict) -> float:
     """A seed's bump sensitivity (rad/s) from ``bump_sensitivity.py --json`` output: the largest
     fast part of the k_c x1.01 change over its recordings."""
-    key = f"k_c x{1 + bump_sensitivity.STEP:g}"
     return max(math.sqrt(max(c["rms"] ** 2 - c["slow_rms"] ** 2, 0.0))
-               for c in (r["change"][key] for r in measured["recordings"]))
+               for c in (r["change"][bump_sensitivity.KC_LABEL] for r in measured["recordings"]))
 
 
 def tally(cases: list, bump: dict, threshold: float = THRESHOLD) -> tuple:
@@ -58,8 +57,9 @@ def tally(cases: list, bump: dict, threshold: float = THRESHOLD) -> tuple:
         ``"effect/period" -> counts`` and ``period -> counts``, each counts a dict with
         ``bumping_named``, ``bumping_cases``, ``calm_named``, ``calm_cases``.
     """
-    per = defaultdict(lambda: {"bumping_named": 0, "bumping_cases": 0, "calm_named": 0, "calm_cases": 0})
-    total = defaultdict(lambda: {"bumping_named": 0, "bumping_cases": 0, "calm_named": 0, "calm_cases": 0})
+    def counts():
+        return {"bumping_named": 0, "bumping_cases": 0, "calm_named": 0, "calm_cases": 0}
+    per, total = defaultdict(counts), defaultdict(counts)
     for c in cases:
         if c["effect"] == "none" or c["seed"] not in bump:
             continue
@@ -77,9 +77,7 @@ def measure(work: Path, seed: int) -> dict:
     if not out.is_file():
         case = work / f"slider_stribeck-{seed}"
         if not (case / "data" / "truth.json").is_file():
-            subprocess.run([sys.executable, "-m", "szdyn.run", "synth", "--out", str(case / "data"),
-                            "--effect", "slider_stribeck", "--seed", str(seed), "--loads", "0.5,1",
-                            "--dt", "5e-5", "--quiet", "--overwrite"], check=True)
+            diagnosis_grid.synthesize(case / "data", "slider_stribeck", seed)
         bump_sensitivity.main([str(case), *RECORDINGS, "--without-effect", "--json", str(out)])
     return json.loads(out.read_text())
 

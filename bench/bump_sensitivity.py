@@ -49,6 +49,9 @@ from szdyn.manifest import read_manifest  # noqa: E402
 PHASE_STEP = 1.0 / 32.0
 #: relative coefficient change
 STEP = 0.01
+#: labels of the two coefficient changes (keys of the JSON's ``rmse`` and ``change``)
+KC_LABEL = f"k_c x{1 + STEP:g}"
+MUK_LABEL = f"mu_k x{1 + STEP:g}"
 #: window (s) of the running mean that separates a slow change from the bumps
 SLOW_S = 0.5
 
@@ -56,8 +59,8 @@ SLOW_S = 0.5
 def _points(truth: dict, q_true: float, pitch: float, diagnosis: dict | None, name: str) -> dict:
     base = {**truth, "q_w0": q_true}
     pts = {"truth": base,
-           f"k_c x{1 + STEP:g}": {**base, "k_c": truth["k_c"] * (1 + STEP)},
-           f"mu_k x{1 + STEP:g}": {**base, "mu_k": truth["mu_k"] * (1 + STEP)},
+           KC_LABEL: {**base, "k_c": truth["k_c"] * (1 + STEP)},
+           MUK_LABEL: {**base, "mu_k": truth["mu_k"] * (1 + STEP)},
            f"phase +{PHASE_STEP:g} pitch": {**base, "q_w0": q_true + PHASE_STEP * pitch}}
     if diagnosis is not None:
         cal = dict(diagnosis["calibrated"])
@@ -107,9 +110,9 @@ def main(argv=None) -> int:
         dt = float(np.median(np.diff(r.t_feat)))
         kern = np.ones(max(1, int(round(SLOW_S / dt))))
         kern /= kern.size
-        for k in (f"k_c x{1 + STEP:g}", f"mu_k x{1 + STEP:g}"):
+        edges = np.arange(r.t_feat[0], r.t_feat[-1], SLOW_S)
+        for k in (KC_LABEL, MUK_LABEL):
             d = speeds[k] - speeds["truth"]
-            edges = np.arange(r.t_feat[0], r.t_feat[-1], SLOW_S)
             row["change"][k] = {"rms": rms(d), "slow_rms": rms(np.convolve(d, kern, mode="same")),
                                 "rms_per_window": [rms(d[(r.t_feat >= a) & (r.t_feat < a + SLOW_S)])
                                                    for a in edges]}

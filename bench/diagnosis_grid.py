@@ -91,6 +91,15 @@ def copy_kept_runs(source: Path, case: Path) -> None:
         shutil.copytree(kept, case / "diagnosis" / CHECKPOINT_DIR)
 
 
+def synthesize(data: Path, effect: str, seed: int, more=()) -> None:
+    """The grid's recordings of one case: ``synth`` into ``data`` (loads 0.5 and 1 kg, RK4 at
+    50 us), ``more`` its further options (``--ramps``, ``--current``)."""
+    # --overwrite: the work directory is the grid's own; a set without truth.json is unfinished
+    subprocess.run([sys.executable, "-m", "szdyn.run", "synth", "--out", str(data), "--effect", effect,
+                    "--seed", str(seed), "--loads", "0.5,1", "--dt", "5e-5", "--quiet", "--overwrite",
+                    *more], check=True)
+
+
 def run_case(work: Path, effect: str, seed: int, diag_args, current: float | None = None,
              runs_from: Path | None = None, ramps: str | None = None) -> dict:
     case = work / f"{effect}-{seed}"
@@ -100,10 +109,7 @@ def run_case(work: Path, effect: str, seed: int, diag_args, current: float | Non
         copy_kept_runs(runs_from / case.name, case)
     if not (data / "truth.json").is_file():
         more = ([] if current is None else ["--current", repr(current)]) + ([] if ramps is None else ["--ramps", ramps])
-        # --overwrite: the work directory is the grid's own; a set without truth.json is unfinished
-        subprocess.run([sys.executable, "-m", "szdyn.run", "synth", "--out", str(data), "--effect", effect,
-                        "--seed", str(seed), "--loads", "0.5,1", "--dt", "5e-5", "--quiet", "--overwrite",
-                        *more], check=True)
+        synthesize(data, effect, seed, more)
     if ("[motor]" in (data / "manifest.toml").read_text()) != (current is not None):
         # a work directory holds recordings with or without the current, not both
         raise SystemExit(f"{data}: recordings {'without' if current is not None else 'with'} a current "
