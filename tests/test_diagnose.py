@@ -1081,7 +1081,9 @@ def test_diagnose_nomination_threshold_outside_0_1_is_a_clear_error(tmp_path, ca
 
 
 @pytest.mark.parametrize("flag, value", [("--polish-jac", "-1"), ("--rivals", "-1"), ("--unstall", "-1"),
-                                         ("--phase-steps", "-1"), ("--workers", "99999999999")])
+                                         ("--phase-steps", "-1"), ("--workers", "99999999999"),
+                                         ("--coefficient-floor", "-0.01"), ("--coefficient-floor", "nan"),
+                                         ("--coefficient-floor", "0.6")])
 def test_diagnose_option_out_of_range_is_a_clear_error(tmp_path, capsys, flag, value):
     m = tmp_path / "m.toml"
     m.write_text("")
@@ -2115,3 +2117,21 @@ def test_the_next_recording_is_ranked_after_the_diagnosis_unless_switched_off(vi
     assert run_main(["diagnose", man, "--out", str(out.parent / "y"), "--no-checkpoint"]) == 0
     assert seen[3:] == [None]
     assert "the next recording was not ranked (RuntimeError: no pool)" in capsys.readouterr().err
+
+
+def test_coefficient_noise_on_model_runs(lift_current):
+    """The coefficients' share of the floor on real model runs: nothing at a step of 0 (the
+    same runs), something finite at 1 %."""
+    from szdyn.diagnose.data import prepare
+    from szdyn.diagnose.engine import FeatureModel
+    from szdyn.diagnose.noise import coefficient_noise
+    from szdyn.manifest import read_manifest
+
+    truth, _, out = lift_current
+    recs = prepare(read_manifest(out.parent / "data" / "manifest.toml"))
+    v = truth["truth_parameters"]["values"]
+    at_truth = {k: v[k] for k in ("k_c", "b_c", "k_imp", "b_imp", "mu_s", "mu_k", "tau_lift")}
+    with FeatureModel(recs, workers=1) as m:
+        assert coefficient_noise(m, 0, at_truth, 0.0) == 0.0
+        c = coefficient_noise(m, 0, at_truth, 0.01)
+    assert math.isfinite(c) and c > 0.0

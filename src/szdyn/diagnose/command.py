@@ -74,6 +74,12 @@ def _build_parser():
                     "off; --no-amplitude-starts gives the earlier default; see "
                     "docs/DIAGNOSIS-DESIGN.md, \"Seed 56: the fifth start's first rescue out of sample, on by "
                     "default\")")
+    ap.add_argument("--coefficient-floor", type=float, default=0.0, metavar="STEP",
+                    help="also count in each recording's noise floor what a model STEP (relative, e.g. 0.01) "
+                    "off in k_c or in the slider friction misses of its impact bumps (two more runs per "
+                    "recording); a light band can keep bumping so that a model 1 %% off misses its bumps by "
+                    "several floors (default 0: off; on seed 64 it named one effect fewer at 0.01 and the "
+                    "same at 0.002, see docs/DIAGNOSIS-DESIGN.md, \"A floor that counts the coefficients\")")
     ap.add_argument("--phase-polish", type=int, default=POLISH_PHASE_STEPS,
                     help="when the named effect moves the wheel against the motor encoder (drive_compliance) "
                     "and its refit took no phase-profiled step, at most this many such steps of it after the "
@@ -158,6 +164,9 @@ def diagnose_command(argv) -> int:
         raise UserInputError(f"diagnose: --second-look must be >= 0, got {args.second_look}")
     if args.phase_polish < 0:
         raise UserInputError(f"diagnose: --phase-polish must be >= 0, got {args.phase_polish}")
+    if not 0.0 <= args.coefficient_floor <= 0.5:  # also refuses NaN
+        raise UserInputError(f"diagnose: --coefficient-floor must be a relative step in 0..0.5 (0: off), "
+                             f"got {args.coefficient_floor}")
     if args.workers is not None and not 1 <= args.workers <= MAX_WORKERS:
         raise UserInputError(f"diagnose: --workers must be in 1..{MAX_WORKERS}, got {args.workers}")
     cands = None
@@ -242,6 +251,7 @@ def diagnose_command(argv) -> int:
                   phase_steps=args.phase_steps, restart=args.restart,
                   second_look=args.second_look, phase_polish=args.phase_polish,
                   scale_profile=args.scale_profile, amplitude_starts=args.amplitude_starts,
+                  coefficient_floor=args.coefficient_floor,
                   staged=not args.no_staged,
                   heavy_look=not args.no_heavy_look, checkpoint=checkpoint,
                   workers=args.workers, log=log, progress=progress)

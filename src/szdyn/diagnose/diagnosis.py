@@ -61,7 +61,7 @@ from .fit import Hypothesis, fit_hypothesis, gauss_newton_step, jacobian, linear
 from .force_scale import (SCALE_PROFILE_FACTORS, force_scale_secant, heldout_along_force_scale,
                           profile_along_force_scale)
 from .locate import follows, locate
-from .noise import bump_noise, load_median, sensor_noise, torque_bump_noise, torque_sensor_noise
+from .noise import bump_noise, coefficient_noise, load_median, sensor_noise, torque_bump_noise, torque_sensor_noise
 from .phase import PHASE_GATE, estimate_phases, identified_phases
 from .heavy import heaviest_load, other_loads
 from .selection import SelectionRule, close_rivals, decide, nominate, rivals, screen, settled
@@ -366,6 +366,14 @@ class Diagnosis:
         from 1.5x to 3.6x, the name unchanged (docs/DIAGNOSIS-DESIGN.md, "Seed 56: the fifth
         start's first rescue out of sample, on by default"). False gives the earlier default, the
         one seeds 13-56's files of record ran with.
+    coefficient_floor : float
+        Relative step ``s`` in 0..0.5; when above 0, each recording's bump part of the noise floor
+        also counts what a model ``s`` off in k_c or in the slider friction misses of its bumps
+        (:func:`.noise.coefficient_noise`), in quadrature with the phase's part. Default 0 (off):
+        built after seed 64 showed light-band runs whose bumps a model 1 % off misses by 4-10
+        sensor floors. On seed 64 it named 7 of 10 at 0.01 (drive_compliance hidden under a floor
+        2.8x higher) and the default's 8 of 10 at 0.002, null `none` at both
+        (docs/DIAGNOSIS-DESIGN.md, "A floor that counts the coefficients").
     staged : bool
         Where the calibration leaves a mismatch (``rule.mismatch`` at the first noise floor),
         also calibrate the base in two stages from the nominal coefficients, on the fit
@@ -401,11 +409,13 @@ class Diagnosis:
     floor_ : float
         Noise floor of the compared feature (rad/s).
     floor_parts_ : dict
-        ``sensor`` and ``bump`` parts (rad/s).
+        ``sensor`` and ``bump`` parts (rad/s); with ``coefficient_floor`` also that ``step``
+        (relative).
     floor_per_recording_ : dict
         Per recording, its own ``sensor`` and ``bump`` parts (rad/s); the floor takes the RMS of
         the first and the median of the second over the fit recordings, each load counting
-        once (:func:`.noise.load_median`).
+        once (:func:`.noise.load_median`). With ``coefficient_floor`` the bump part is the phase's
+        and the coefficients' in quadrature, and ``bump_phase``, ``bump_coefficients`` are the two.
     phases_ : dict
         Per recording (name), its estimated initial wheel phase
         (:meth:`.phase.PhaseEstimate.to_dict`) at the first calibration; empty when not
@@ -587,7 +597,7 @@ class Diagnosis:
                  weighting: str = "fallback", unstall: int = 2, fit_phase: bool = True,
                  phase_steps: int = 0, restart: bool = False, second_look: int = SECOND_LOOK_STEPS,
                  phase_polish: int = POLISH_PHASE_STEPS, scale_profile: bool = False, staged: bool = True,
-                 heavy_look: bool = True, amplitude_starts: bool = True,
+                 heavy_look: bool = True, amplitude_starts: bool = True, coefficient_floor: float = 0.0,
                  checkpoint=None, workers: int | None = None, log=None, progress=None):
         self.candidates = candidates
         self.rule = rule or SelectionRule()
@@ -613,6 +623,10 @@ class Diagnosis:
         self.phase_polish = phase_polish
         self.scale_profile = scale_profile
         self.amplitude_starts = amplitude_starts
+        if isinstance(coefficient_floor, bool) or not isinstance(coefficient_floor, (int, float)) \
+                or not 0.0 <= coefficient_floor <= 0.5:     # (also refuses NaN)
+            raise ValueError(f"coefficient_floor must be a relative step in 0..0.5, got {coefficient_floor!r}")
+        self.coefficient_floor = float(coefficient_floor)
         self.staged = staged
         self.heavy_look = heavy_look
         self.checkpoint = checkpoint
@@ -1457,12 +1471,22 @@ class Diagnosis:
                  f"bumps {s_bump:.3g}); weight {w:.3g} rad/s per N m")
         return out
 
+    def _bump_parts(self, model, i: int, base_mc) -> dict:
+        """Recording ``i``'s bump part of the floor (rad/s), as ``{"bump": ...}``; with
+        ``coefficient_floor`` the phase's and the coefficients' in quadrature, both given too."""
+        b = bump_noise(model, i, base_mc)
+        if not self.coefficient_floor:
+            return {"bump": b}
+        c = coefficient_noise(model, i, base_mc, self.coefficient_floor)
+        return {"bump": math.hypot(b, c), "bump_phase": b, "bump_coefficients": c}
+
     def _noise_floor(self, model, recs, fit_idx, all_idx, base_mc) -> dict:
         """Set the noise floor (``floor_``, its parts, per recording, spread) at the model point
         ``base_mc``; returns each recording's own floor (rad/s) by index."""
         held_idx = [i for i in all_idx if i not in fit_idx]
         sens = [sensor_noise(recs[i]) for i in fit_idx]
-        bump = [bump_noise(model, i, base_mc) for i in fit_idx]
+        parts = {i: self._bump_parts(model, i, base_mc) for i in all_idx}
+        bump = [parts[i]["bump"] for i in fit_idx]
         # (the sensor part is the encoders' and hardly depends on the load: a plain RMS)
         s_sens = math.sqrt(np.mean(np.square(sens)))
         # median: one recording whose start flips between stick and slip must not inflate the
@@ -1473,9 +1497,11 @@ class Diagnosis:
         self.floor_parts_ = {"sensor": s_sens, "bump": s_bump}
         # held-out recordings' own floors too (they judge; the common floor is the fit ones')
         sens += [sensor_noise(recs[i]) for i in held_idx]
-        bump += [bump_noise(model, i, base_mc) for i in held_idx]
+        bump += [parts[i]["bump"] for i in held_idx]
         idx = fit_idx + held_idx
-        self.floor_per_recording_ = {recs[i].name: {"sensor": a, "bump": b} for i, a, b in zip(idx, sens, bump)}
+        self.floor_per_recording_ = {recs[i].name: {"sensor": a, **parts[i]} for i, a in zip(idx, sens)}
+        if self.coefficient_floor:
+            self.floor_parts_["coefficient_step"] = self.coefficient_floor
         # (never 0: a noise-free synthetic recording would divide by it)
         own = {i: max(math.hypot(a, b), 1e-12) for i, a, b in zip(idx, sens, bump)}
         self.floor_spread_ = max(own.values()) / min(own.values())

@@ -488,6 +488,18 @@ def _second_look_md(d) -> list:
             f"point judged with the phases estimated at it); this diagnosis is that pass. {cost}", ""]
 
 
+def _coefficient_floor_md(d) -> str:
+    """Sentence on the bump part's coefficient share (``--coefficient-floor``), empty when off."""
+    step = d.floor_parts_.get("coefficient_step")
+    if not step:
+        return ""
+    return (f"The bumps count what a model {step:.3g} off (relative) in k_c or in the slider friction misses "
+            "of them (`--coefficient-floor`), in quadrature with the wheel phase's share; per recording (phase, "
+            "coefficients, rad/s): " + "; ".join(f"`{k}` {_f(v['bump_phase'], '.3g')}, "
+                                                 f"{_f(v['bump_coefficients'], '.3g')}"
+                                                 for k, v in d.floor_per_recording_.items()) + ". ")
+
+
 def _scale_profile_md(d) -> list:
     """Report paragraph on the named effect's profile along the force scale (``scale_profile_``)."""
     p = d.scale_profile_
@@ -756,7 +768,7 @@ def _report_md(d, js) -> str:
           "fit recordings' sensor noise and the median of their bumps, each load counting once. Per recording (sensor, bumps, "
           "rad/s): " + "; ".join(f"`{k}` {_f(v['sensor'], '.3g')}, {_f(v['bump'], '.3g')}"
                                   for k, v in d.floor_per_recording_.items())
-          + f"; their own floors differ {d.floor_spread_:.1f}x. " + (_WEIGHTED.format(
+          + f"; their own floors differ {d.floor_spread_:.1f}x. " + _coefficient_floor_md(d) + (_WEIGHTED.format(
               ", ".join(f"`{k}` {w:.2f}" for k, w in d.weights_.items())) if d.weighted_ else
               "Where these differ a lot (recordings that flip between tracking and slipping with the "
               "wheel phase have large bumps), the common floor can hide an effect that the "
