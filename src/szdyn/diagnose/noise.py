@@ -45,7 +45,7 @@ from ..recordings import Recording, smoothed_current, speeds
 from .data import Prepared, WINDOW_S
 from .phase import PHASE_UNCERTAINTY
 
-__all__ = ["sensor_noise", "bump_noise", "coefficient_noise", "torque_sensor_noise", "torque_bump_noise",
+__all__ = ["sensor_noise", "bump_noise", "coefficient_noise", "fast_rms", "torque_sensor_noise", "torque_bump_noise",
            "load_median"]
 
 #: window (s) of the running mean that parts a slow change of the model's speed, which a fit
