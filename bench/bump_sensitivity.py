@@ -42,6 +42,8 @@ sys.path.insert(0, str(ROOT / "src"))
 
 from szdyn.diagnose.data import prepare  # noqa: E402
 from szdyn.diagnose.engine import FeatureModel, rms  # noqa: E402
+# the window that parts a slow change from the bumps, the same as the floor's coefficient share
+from szdyn.diagnose.noise import SLOW_S  # noqa: E402
 from szdyn.io import write_json  # noqa: E402
 from szdyn.manifest import read_manifest  # noqa: E402
 
@@ -52,8 +54,6 @@ STEP = 0.01
 #: labels of the two coefficient changes (keys of the JSON's ``rmse`` and ``change``)
 KC_LABEL = f"k_c x{1 + STEP:g}"
 MUK_LABEL = f"mu_k x{1 + STEP:g}"
-#: window (s) of the running mean that separates a slow change from the bumps
-SLOW_S = 0.5
 
 
 def _points(truth: dict, q_true: float, pitch: float, diagnosis: dict | None, name: str) -> dict:
