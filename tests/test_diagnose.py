@@ -912,7 +912,8 @@ class _ScriptedDiagnosis(Diagnosis):
         self.seen.append({r.name for r in recs if r.role != "fit"})
         self.weighted_seen.append(weighted)
         verdict, self.heldout_beyond_floor_, *spread = self.script.pop(0)
-        self.verdict_, self.selected_ = verdict, (["slider_viscous"] if verdict == "selected" else [])
+        verdict, _, named = verdict.partition(":")   # "selected:<effect>" names another than the drag
+        self.verdict_, self.selected_ = verdict, ([named or "slider_viscous"] if verdict == "selected" else [])
         self.floor_spread_, self.weighted_ = (spread or [1.5])[0], weighted
         self.floor_, self.calibrated_ = 0.01, Namespace(rmse_fit=0.011)
         self.phase_ = {"estimated": False}   # beyond the phase gate: no second look (tests/test_second_look.py)
@@ -936,6 +937,30 @@ def test_fit_exchanges_the_split_only_when_a_heldout_recording_shows_what_the_fi
     assert {r.name for r in d.recordings_ if r.role != "fit"} == {"a_fast", "b_down"}
     assert d.unused_split_["verdict"] == "unexplained" and d.unused_split_["exchanged"] == {"b_down": "b_up"}
     assert d.n_runs_ == 20 and d.timings_["unused_split"] == 1.0
+    # ... naming one whose model misses a run both passes held out, which the first reproduced:
+    # the exchange hid more than it showed, and the first answer stands with its own state
+    d = _ScriptedDiagnosis([("selected", {"b_down": 5.4, "a_fast": 3.0}),
+                            ("selected", {"b_up": 2.2, "a_fast": 55.9})]).fit(_runs())
+    assert len(d.seen) == 2 and d.first_split_ is None and d.verdict_ == "selected"
+    assert d.heldout_beyond_floor_ == {"b_down": 5.4, "a_fast": 3.0}
+    assert {r.name for r in d.recordings_ if r.role != "fit"} == {"a_fast", "b_down"}
+    assert d.unused_split_["worse_on"] == {"a_fast": (3.0, 55.9)}
+    assert d.unused_split_["heldout_beyond_floor"] == {"b_up": 2.2, "a_fast": 55.9}
+    assert d.n_runs_ == 20 and d.timings_["unused_split"] == 1.0
+    # the shared run only worse within max_remaining, or already beyond it in the first pass, or
+    # a run only the second pass held out: the second pass is the answer
+    for second in ({"b_up": 2.2, "a_fast": 4.9}, {"b_up": 9.0, "a_fast": 3.0}):
+        d = _ScriptedDiagnosis([("selected", {"b_down": 5.4, "a_fast": 3.0}), ("selected", second)]).fit(_runs())
+        assert d.first_split_["exchanged"] == {"b_down": "b_up"} and d.unused_split_ is None
+        assert d.heldout_beyond_floor_ == second
+    d = _ScriptedDiagnosis([("selected", {"b_down": 26.6, "a_fast": 6.0}),
+                            ("selected", {"a_fast": 30.0, "b_up": 1.0})]).fit(_runs())
+    assert d.first_split_ is not None and d.unused_split_ is None
+    # ... and so is one naming another effect, however it holds out
+    d = _ScriptedDiagnosis([("selected", {"b_down": 5.4, "a_fast": 3.0}),
+                            ("selected:load_lift", {"b_up": 2.2, "a_fast": 55.9})]).fit(_runs())
+    assert d.selected_ == ["load_lift"] and d.first_split_["selected"] == ["slider_viscous"]
+    assert d.unused_split_ is None
     # within max_remaining floors, after "unexplained", or switched off: one pass
     for script, kw in [([("none", {"b_down": 4.9})], {}), ([("unexplained", {"b_down": 18.0})], {}),
                        ([("selected", {"b_down": 4.9})], {}),
@@ -965,6 +990,13 @@ def test_report_says_which_pass_of_an_exchanged_split_is_the_answer():
     (text, _) = _split_md(d)
     assert text.startswith("**Split exchange tried.**") and "`b_down` (26.6x the floor)" in text
     assert "said unexplained" in text and "the effect named here stands" in text
+    # the second pass named one too, but missed a run both held out: the report says which
+    d.unused_split_ = {**d.unused_split_, "verdict": "selected", "selected": ["slider_stribeck"],
+                       "worse_on": {"a_fast": (3.0, 55.9)}}
+    (text, _) = _split_md(d)
+    assert text.startswith("**Split exchange tried.**") and "named slider_stribeck too" in text
+    assert "`a_fast` (55.9x its floor, against 3.0x here), held out in both passes" in text
+    assert "the answer of this split stands (second pass: 700 s, 1800 model runs)" in text
     assert _split_md(Namespace(first_split_=None, unused_split_=None, hidden_conditions_=[])) == []
 
 

@@ -536,10 +536,14 @@ class Diagnosis:
         ``n_runs_``). None otherwise.
     unused_split_ : dict or None
         When the first pass named an effect, the split was exchanged, and the second pass named
-        none (so the first answer stands): what the second said (``weighted``, ``verdict``,
-        ``selected``, ``calibrated_fit_over_floor``, ``seconds``, ``model_runs``,
-        ``failed_runs``, included in ``timings_`` and ``n_runs_``) and the ``exchanged`` pairs.
-        None otherwise.
+        none, or the same effect but missed a recording held out in both by more than
+        ``rule.max_remaining`` floors that the first held within them (so the first answer
+        stands): what the second said
+        (``weighted``, ``verdict``, ``selected``, ``calibrated_fit_over_floor``, ``seconds``,
+        ``model_runs``, ``failed_runs``, included in ``timings_`` and ``n_runs_``), the
+        ``exchanged`` pairs, its ``heldout_beyond_floor`` and ``worse_on`` (name -> [first pass,
+        second pass] held-out RMSE over each pass's floor; empty when it named none). None
+        otherwise.
     restart_ : dict or None
         When the pass that is the answer was run again from a better base (``restart``): what
         the first said (``weighted``, ``verdict``, ``selected``, ``calibrated_fit_over_floor``,
@@ -1164,7 +1168,9 @@ class Diagnosis:
         diagnosis runs once more with that recording among the fit ones and a similar fit
         recording held out instead (:func:`.split.exchange_pairs`), and the second pass is the
         answer (``first_split_`` keeps what the first said), except that a named effect stands
-        when the second pass names none (``unused_split_`` keeps what that said).
+        when the second pass names none, or names the same one but its model misses a recording
+        held out in both passes by more than ``rule.max_remaining`` floors that the first's held
+        within them (``unused_split_`` keeps what the second said).
 
         With ``weighting="fallback"``, when that names no effect and the recordings' own noise
         floors differ by more than :data:`FLOOR_SPREAD`, the diagnosis runs once more with every
@@ -1423,12 +1429,26 @@ class Diagnosis:
                      + ", ".join(f"{k} fitted and {v} held out" for k, v in pairs.items()))
             state = dict(self.__dict__)
             self._pass(exchanged(recs, pairs), weighted)
-            if first["verdict"] == "selected" and self.verdict_ != "selected":
+            worse = self._worse_on_shared(first["heldout_beyond_floor"]) \
+                if first["verdict"] == self.verdict_ == "selected" and first["selected"] == self.selected_ else {}
+            if first["verdict"] == "selected" and (self.verdict_ != "selected" or worse):
                 # the recording the named model missed, fitted, names nothing: the first answer
                 # stands (a recording near the full-slip cliff can be missed without anything
-                # missing from the model); the second pass is kept as a record
-                second = {**self._summary(), "exchanged": pairs}
-                self.log(f"with the split exchanged the diagnosis says {self.verdict_}: the first answer stands")
+                # missing from the model); or it names the same effect, but its model misses a
+                # recording both passes held out, which the first one's reproduced: the exchange
+                # hid more from the fit than it showed (stop-protocol Stribeck seed 55: the partner
+                # was the only slow forward run fitted, and the held-out slow run at 1 kg went from
+                # 3.0 to 55.9 floors). Naming another effect, the second pass stays the answer: no
+                # case has told which of two such models to trust. The second pass is kept as a record
+                second = {**self._summary(), "exchanged": pairs,
+                          "heldout_beyond_floor": dict(self.heldout_beyond_floor_), "worse_on": worse}
+                if worse:
+                    self.log("with the split exchanged the updated model misses "
+                             + ", ".join(f"{k} by {v[1]:.1f}x the floor (first pass {v[0]:.1f}x)"
+                                         for k, v in worse.items())
+                             + ", held out in both passes: the first answer stands")
+                else:
+                    self.log(f"with the split exchanged the diagnosis says {self.verdict_}: the first answer stands")
                 self.__dict__.update(state)
                 self.unused_split_ = second
                 self._count_pass("unused_split", second)
@@ -1437,6 +1457,24 @@ class Diagnosis:
             self.first_split_ = first
             self._count_pass("first_split", first)
         return recs
+
+    def _worse_on_shared(self, first_beyond: dict) -> dict:
+        """Recordings held out in both passes of an exchanged split that the first pass's model
+        held within ``rule.max_remaining`` noise floors and this pass's model misses by more.
+
+        Parameters
+        ----------
+        first_beyond : dict of str -> float
+            The first pass's held-out RMSE over its own noise floor, per recording.
+
+        Returns
+        -------
+        dict of str -> (float, float)
+            Name -> (first pass, this pass), each over its own pass's floor.
+        """
+        lim = self.rule.max_remaining
+        return {k: (first_beyond[k], v) for k, v in sorted(self.heldout_beyond_floor_.items())
+                if k in first_beyond and first_beyond[k] <= lim < v}
 
     def _torque_floor(self, model, recs, fit_idx, all_idx, base_mc):
         """Noise floor of the smoothed motor torque, and its residual weight on ``model``.

@@ -418,7 +418,16 @@ def _split_md(d) -> list:
               + f" (the fit recording most like it: same travel direction, then nearest speed, then "
               "nearest load). First pass: "
               f"{f1['seconds']:.0f} s, {f1['model_runs']} model runs.", ""]
-    if d.unused_split_:
+    if d.unused_split_ and d.unused_split_.get("worse_on"):
+        u = d.unused_split_
+        L += ["**Split exchange tried.** The updated model misses held-out "
+              + ", ".join(f"`{k}` ({d.heldout_beyond_floor_[k]:.1f}x the floor)" for k in u["exchanged"])
+              + ". A second pass with " + ", ".join(f"`{k}` fitted and `{v}` held out" for k, v in u["exchanged"].items())
+              + f" named {', '.join(u['selected'])} too, but its model missed "
+              + ", ".join(f"`{k}` ({w:.1f}x its floor, against {f:.1f}x here)" for k, (f, w) in u["worse_on"].items())
+              + ", held out in both passes: the exchange hid more from the fit than it showed, so the "
+              f"answer of this split stands (second pass: {u['seconds']:.0f} s, {u['model_runs']} model runs).", ""]
+    elif d.unused_split_:
         u = d.unused_split_
         L += ["**Split exchange tried.** The updated model misses held-out "
               + ", ".join(f"`{k}` ({d.heldout_beyond_floor_[k]:.1f}x the floor)" for k in u["exchanged"])
