@@ -144,6 +144,7 @@ def diagnose_command(argv) -> int:
     from .diagnosis import Diagnosis
     from .report import OUTPUT_FILES, failed_md, write_report
     from .split import choose_heldout, with_heldout
+    from .noise import MAX_COEFFICIENT_STEP
 
     args = _build_parser().parse_args(argv)
     if args.shortlist < 1:
@@ -164,8 +165,8 @@ def diagnose_command(argv) -> int:
         raise UserInputError(f"diagnose: --second-look must be >= 0, got {args.second_look}")
     if args.phase_polish < 0:
         raise UserInputError(f"diagnose: --phase-polish must be >= 0, got {args.phase_polish}")
-    if not 0.0 <= args.coefficient_floor <= 0.5:  # also refuses NaN
-        raise UserInputError(f"diagnose: --coefficient-floor must be a relative step in 0..0.5 (0: off), "
+    if not 0.0 <= args.coefficient_floor <= MAX_COEFFICIENT_STEP:  # also refuses NaN
+        raise UserInputError(f"diagnose: --coefficient-floor must be a relative step in 0..{MAX_COEFFICIENT_STEP:g} (0: off), "
                              f"got {args.coefficient_floor}")
     if args.workers is not None and not 1 <= args.workers <= MAX_WORKERS:
         raise UserInputError(f"diagnose: --workers must be in 1..{MAX_WORKERS}, got {args.workers}")

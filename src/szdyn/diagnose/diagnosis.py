@@ -61,7 +61,8 @@ from .fit import Hypothesis, fit_hypothesis, gauss_newton_step, jacobian, linear
 from .force_scale import (SCALE_PROFILE_FACTORS, force_scale_secant, heldout_along_force_scale,
                           profile_along_force_scale)
 from .locate import follows, locate
-from .noise import bump_noise, coefficient_noise, load_median, sensor_noise, torque_bump_noise, torque_sensor_noise
+from .noise import (MAX_COEFFICIENT_STEP, bump_noise, coefficient_noise, load_median, sensor_noise, torque_bump_noise,
+                    torque_sensor_noise)
 from .phase import PHASE_GATE, estimate_phases, identified_phases
 from .heavy import heaviest_load, other_loads
 from .selection import SelectionRule, close_rivals, decide, nominate, rivals, screen, settled
@@ -628,8 +629,9 @@ class Diagnosis:
         self.scale_profile = scale_profile
         self.amplitude_starts = amplitude_starts
         if isinstance(coefficient_floor, bool) or not isinstance(coefficient_floor, (int, float)) \
-                or not 0.0 <= coefficient_floor <= 0.5:     # (also refuses NaN)
-            raise ValueError(f"coefficient_floor must be a relative step in 0..0.5, got {coefficient_floor!r}")
+                or not 0.0 <= coefficient_floor <= MAX_COEFFICIENT_STEP:     # (also refuses NaN)
+            raise ValueError(f"coefficient_floor must be a relative step in 0..{MAX_COEFFICIENT_STEP:g}, "
+                             f"got {coefficient_floor!r}")
         self.coefficient_floor = float(coefficient_floor)
         self.staged = staged
         self.heavy_look = heavy_look

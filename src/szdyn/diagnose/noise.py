@@ -46,7 +46,7 @@ from .data import Prepared, WINDOW_S
 from .phase import PHASE_UNCERTAINTY
 
 __all__ = ["sensor_noise", "bump_noise", "coefficient_noise", "fast_rms", "torque_sensor_noise", "torque_bump_noise",
-           "load_median"]
+           "load_median", "MAX_COEFFICIENT_STEP"]
 
 #: window (s) of the running mean that parts a slow change of the model's speed, which a fit
 #: sees and corrects, from a change in its bumps, which it cannot (:func:`coefficient_noise`)
@@ -54,6 +54,9 @@ SLOW_S = 0.5
 #: the coefficients :func:`coefficient_noise` moves, each group by one factor: the contact
 #: stiffness, and the slider friction with its static part (so that mu_s >= mu_k still holds)
 COEFFICIENT_MOVES = (("k_c",), ("mu_k", "mu_s"))
+#: largest relative step :func:`coefficient_noise` takes (``--coefficient-floor``); beyond it the
+#: change is no longer a small uncertainty but another model
+MAX_COEFFICIENT_STEP = 0.5
 
 
 def _half_difference(p: Prepared, smoothed) -> float:

@@ -418,27 +418,25 @@ def _split_md(d) -> list:
               + f" (the fit recording most like it: same travel direction, then nearest speed, then "
               "nearest load). First pass: "
               f"{f1['seconds']:.0f} s, {f1['model_runs']} model runs.", ""]
-    if d.unused_split_ and d.unused_split_.get("worse_on"):
+    if d.unused_split_:
         u = d.unused_split_
-        L += ["**Split exchange tried.** The updated model misses held-out "
-              + ", ".join(f"`{k}` ({d.heldout_beyond_floor_[k]:.1f}x the floor)" for k in u["exchanged"])
-              + ". A second pass with " + ", ".join(f"`{k}` fitted and `{v}` held out" for k, v in u["exchanged"].items())
-              + f" named {', '.join(u['selected'])} too, but its model missed "
-              + ", ".join(f"`{k}` ({w:.1f}x its floor, against {f:.1f}x here)" for k, (f, w) in u["worse_on"].items())
-              + ", held out in both passes: the exchange hid more from the fit than it showed, so the "
-              f"answer of this split stands (second pass: {u['seconds']:.0f} s, {u['model_runs']} model runs).", ""]
-    elif d.unused_split_:
-        u = d.unused_split_
-        L += ["**Split exchange tried.** The updated model misses held-out "
-              + ", ".join(f"`{k}` ({d.heldout_beyond_floor_[k]:.1f}x the floor)" for k in u["exchanged"])
-              + ". A second pass with " + ", ".join(f"`{k}` fitted and `{v}` held out" for k, v in u["exchanged"].items())
-              + f" said {u['verdict']} (calibrated base {u['calibrated_fit_over_floor']:.2f}x the floor; "
-              f"{u['seconds']:.0f} s, {u['model_runs']} model runs), so the effect named here stands; "
-              + ("the updated model reproduced that recording with its forces scaled within their "
-                 "uncertainty (above), so it depends sharply on the force scale."
-                 if _all_reproduced_along_scale(d, u["exchanged"]) else
-                 "that recording is either less reproducible than the floor says or shows something this "
-                 "model does not have."), ""]
+        tried = ("**Split exchange tried.** The updated model misses held-out "
+                 + ", ".join(f"`{k}` ({d.heldout_beyond_floor_[k]:.1f}x the floor)" for k in u["exchanged"])
+                 + ". A second pass with "
+                 + ", ".join(f"`{k}` fitted and `{v}` held out" for k, v in u["exchanged"].items()))
+        if u.get("worse_on"):
+            L += [tried + f" named {', '.join(u['selected'])} too, but its model missed "
+                  + ", ".join(f"`{k}` ({w:.1f}x its floor, against {f:.1f}x here)" for k, (f, w) in u["worse_on"].items())
+                  + ", held out in both passes: the exchange hid more from the fit than it showed, so the "
+                  f"answer of this split stands (second pass: {u['seconds']:.0f} s, {u['model_runs']} model runs).", ""]
+        else:
+            L += [tried + f" said {u['verdict']} (calibrated base {u['calibrated_fit_over_floor']:.2f}x the floor; "
+                  f"{u['seconds']:.0f} s, {u['model_runs']} model runs), so the effect named here stands; "
+                  + ("the updated model reproduced that recording with its forces scaled within their "
+                     "uncertainty (above), so it depends sharply on the force scale."
+                     if _all_reproduced_along_scale(d, u["exchanged"]) else
+                     "that recording is either less reproducible than the floor says or shows something this "
+                     "model does not have."), ""]
     return L
 
 
