@@ -1748,6 +1748,14 @@ def test_a_recording_too_coarse_for_the_speed_window_is_refused():
     edge = Recording(name="e.csv", t=te, theta_w=3.0 * te, theta_b=3.0 * te)
     with pytest.raises(UserInputError, match=r"'e.csv' is too short \(0.099 s\) for a speed window of 0.1 s"):
         prepare_one(edge, default_parameters(), "fit")
+    # a 10 kHz log of 4 s with its time in ms: sampled every 0.1 "s", it passes the sampling
+    # check but lasts 4000 "s"; refused before any model run. The same log in s passes.
+    tk = 0.1 * np.arange(40_000)
+    khz = Recording(name="k.csv", t=tk, theta_w=3e-3 * tk, theta_b=3e-3 * tk)
+    with pytest.raises(UserInputError, match=r"'k.csv' lasts 4000 s, more than 3600 s: .* in seconds"):
+        prepare_one(khz, default_parameters(), "fit")
+    ins = Recording(name="k.csv", t=tk / 1000, theta_w=3e-3 * tk, theta_b=3e-3 * tk)
+    assert prepare_one(ins, default_parameters(), "fit").y.size > 0
 
 
 def test_candidates_that_name_none_are_refused(tmp_path, capsys):

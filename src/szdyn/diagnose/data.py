@@ -36,6 +36,11 @@ WINDOW_S = 0.1
 FEATURE_DT = 0.05
 #: output step of the model runs (s) on which the model's feature is computed
 SIM_DT = 1e-3
+#: longest recording the diagnosis takes (s). Every model run simulates each recording whole and
+#: a diagnosis makes hundreds of runs, so an hour-long log would take days; no ramp test of the
+#: actuator lasts that long, while a time column in ms from a logger at 10 kHz or more (which
+#: passes the sampling check as a 10 Hz log) looks 1000 times longer than it is
+MAX_DURATION_S = 3600.0
 
 
 @dataclass
@@ -109,8 +114,8 @@ def prepare_one(rec: Recording, params: ParameterSet, role: str, *, window_s: fl
     ------
     UserInputError
         If the recording is sampled too coarsely for the speed window (less than one sample in
-        ``window_s``: a time column in ms read as s, for instance), or lasts less than one
-        window.
+        ``window_s``: a time column in ms read as s, for instance), lasts less than one
+        window, or lasts more than :data:`MAX_DURATION_S`.
     """
     med = rec.sampling()["median_dt"]
     if med > window_s * (1 + 1e-9):   # one per window exactly passes, rounding aside
@@ -123,6 +128,12 @@ def prepare_one(rec: Recording, params: ParameterSet, role: str, *, window_s: fl
             f"less.{units}")
     if rec.duration < window_s:
         raise UserInputError(_too_short(rec.name, rec.duration, window_s))
+    if rec.duration > MAX_DURATION_S:
+        raise UserInputError(
+            f"recording '{rec.name}' lasts {rec.duration:.4g} s, more than {MAX_DURATION_S:g} s: every "
+            "model run of the diagnosis simulates each recording whole, so this would take days. Is the "
+            "'t' column in seconds (a log in ms looks 1000 times longer)? Otherwise split the log into "
+            "runs of a few minutes, each a [[recording]] of the manifest")
     t, ww, wb = speeds(rec, window_s)
     drive = Sampled(t=t, omega=ww)
     t0, t1 = float(t[0]), float(t[-1])
