@@ -13,7 +13,8 @@ beyond the 0.5 s running mean, in quadrature), the worse of the two runs, rad/s.
 *bumping* above :data:`THRESHOLD` (the values fall in two groups far either side of it:
 docs/DIAGNOSIS-DESIGN.md, "Seed 64's 0.5 kg runs"). The named cases of the seeds' figures of
 record are then counted per effect and kind, early (seeds up to 27) and late. Resumable: the
-recordings and each seed's measurement are kept in ``--work``. This reads ``truth.json``: it is
+recordings and each seed's measurement are kept in ``--work``, and a seed already in ``--out``
+keeps its value there unless ``--work`` holds its measurement. This reads ``truth.json``: it is
 an analysis of the benchmark, not part of a diagnosis.
 """
 from __future__ import annotations
@@ -90,10 +91,18 @@ def main(argv=None) -> int:
     args.work.mkdir(parents=True, exist_ok=True)
     cases = oos_summary.load(oos_summary.record())
     seeds = sorted({c["seed"] for c in cases if c["effect"] != "none"})
+    # a seed measured in an earlier run keeps its value from --out (the measurement is
+    # deterministic: the seed's synth recordings and one model run each), so that a new seed
+    # costs its own measurement only, even where the earlier --work is gone
+    earlier = {}
+    if args.out.is_file():
+        earlier = {int(s): float(v) for s, v in json.loads(args.out.read_text())["fast_kc_rad_s"].items()}
     bump = {}
     for k, s in enumerate(seeds, 1):
-        bump[s] = sensitivity(measure(args.work, s))
-        print(f"[{k}/{len(seeds)}] seed {s}: {bump[s]:.4f} rad/s", file=sys.stderr, flush=True)
+        kept = s in earlier and not (args.work / f"ne{s}.json").is_file()
+        bump[s] = earlier[s] if kept else sensitivity(measure(args.work, s))
+        print(f"[{k}/{len(seeds)}] seed {s}: {bump[s]:.4f} rad/s" + (f" (from {args.out})" if kept else ""),
+              file=sys.stderr, flush=True)
     per, total = tally(cases, bump)
     write_json(args.out, {
         "what": "Per seed: the bump sensitivity of the seed's base truth (its perturbed coefficients, no "

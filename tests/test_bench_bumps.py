@@ -71,3 +71,30 @@ def test_the_tally_splits_named_cases_by_kind_and_period():
     assert per["slider_stribeck/early"]["bumping_cases"] == 1
     assert total["late"] == {"bumping_named": 1, "bumping_cases": 2, "calm_named": 1, "calm_cases": 1}
     assert sum(t["bumping_cases"] + t["calm_cases"] for t in total.values()) == 4
+
+
+def test_a_seed_in_the_earlier_output_is_not_measured_again(tmp_path, monkeypatch):
+    """The work directory of an earlier run may be gone: its seeds keep their values from --out,
+    and only a new seed (or one whose measurement --work holds) is measured."""
+    import json
+
+    regime = load_bench("bump_regime")
+    cases = [{"effect": "slider_stribeck", "seed": s, "correct": s == 30} for s in (20, 30, 40)]
+    monkeypatch.setattr(regime.oos_summary, "record", lambda: None)
+    monkeypatch.setattr(regime.oos_summary, "load", lambda _: cases)
+    measured = []
+
+    def measure(work, seed):
+        measured.append(seed)
+        return _measured((0.05, 0.03))
+
+    monkeypatch.setattr(regime, "measure", measure)
+    out, work = tmp_path / "bump.json", tmp_path / "work"
+    out.write_text(json.dumps({"fast_kc_rad_s": {"20": 0.02, "40": 0.0001}}))
+    work.mkdir()
+    (work / "ne40.json").write_text("{}")       # measured in this work dir: measured again
+    assert regime.main(["--work", str(work), "--out", str(out)]) == 0
+    assert measured == [30, 40]
+    got = json.loads(out.read_text())
+    assert got["fast_kc_rad_s"] == {"20": 0.02, "30": pytest.approx(0.04), "40": pytest.approx(0.04)}
+    assert got["total"]["late"] == {"bumping_named": 1, "bumping_cases": 2, "calm_named": 0, "calm_cases": 0}
