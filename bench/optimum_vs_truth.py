@@ -33,10 +33,17 @@ ends alike is two valleys the fit recordings cannot tell apart (docs/DIAGNOSIS-D
 "Splits that keep every load and direction"); a truth that fits well only with its own phases
 is a valley the diagnosis's phases hide (docs/DIAGNOSIS-DESIGN.md, "The truth's narrow basin").
 This reads the answer: it is an analysis tool, never part of a diagnosis.
+
+``--scale F1,F2,...`` adds the final model with every force scaled together by each factor
+(``final xF``: :func:`szdyn.diagnose.force_scale.force_scale_direction`, k_imp included),
+measured the same three ways: whether the truth's valley lies along the force scale from where
+the diagnosis ended (on null 89 it did not: docs/DIAGNOSIS-DESIGN.md, "Null 89's unexplained,
+traced").
 """
 from __future__ import annotations
 
 import json
+import argparse
 import math
 import sys
 from pathlib import Path
@@ -94,7 +101,23 @@ def diagnosis_roles(recs, d: dict):
     return with_heldout(recs, held)
 
 
-def points_of(d: dict, truth: dict, recs) -> tuple:
+def scaled_points(hyp: Hypothesis, x, factors) -> dict:
+    """``{"final xF": point}``: the point ``x`` (fit coordinates of ``hyp``) with every force
+    scaled by each factor ``F`` (> 0), exactly: each parameter by ``F`` to its
+    :attr:`~szdyn.diagnose.candidates.FitParam.force_power` (the direction of
+    :func:`szdyn.diagnose.force_scale.force_scale_direction`, whose linear coordinates it only
+    follows to first order)."""
+    out = {}
+    for f in factors:
+        if not (math.isfinite(f) and f > 0.0):
+            raise ValueError(f"--scale: every factor must be a finite number > 0, got {f!r}")
+        z = [xj + p.force_power * math.log(f) if p.log else xj * f ** p.force_power
+             for p, xj in zip(hyp.params, x)]
+        out[f"final x{f:g}"] = hyp.point(hyp.inside(z))
+    return out
+
+
+def points_of(d: dict, truth: dict, recs, scale=()) -> tuple:
     """The points compared: ``(hypothesis name, {label: (model_changes, sensor_changes)})``.
 
     ``d`` is diagnosis.json, ``truth`` truth.json, ``recs`` the prepared recordings (their
@@ -114,6 +137,7 @@ def points_of(d: dict, truth: dict, recs) -> tuple:
     mc, sc = hyp.point(x1)
     points = {"final": hyp.point(x0), "truth": (mc, sc), "truth, its b_imp": ({**mc, "b_imp": tv["b_imp"]}, sc)}
     points.update({f"line {a:g}": hyp.point(x0 + a * (x1 - x0)) for a in LINE})
+    points.update(scaled_points(hyp, x0, scale))
     if truth["effect"] not in ("none", effect):
         # a wrong name: "truth" above is the truth's base with the named effect's final
         # amplitude; the concealed effect has no term in the named hypothesis
@@ -139,11 +163,11 @@ def refit_values(d: dict, effect: str) -> dict | None:
     return e.get("values") if e is not None and e.get("refitted") else None
 
 
-def compare(case: Path) -> dict:
+def compare(case: Path, scale=()) -> dict:
     d = json.loads((case / "diagnosis" / "diagnosis.json").read_text())
     truth = json.loads((case / "data" / "truth.json").read_text())
     recs = diagnosis_roles(prepare(read_manifest(case / "data" / "manifest.toml")), d)
-    hypothesis, points = points_of(d, truth, recs)
+    hypothesis, points = points_of(d, truth, recs, scale)
     fit_idx = [i for i, r in enumerate(recs) if r.role == "fit"]
     all_idx = list(range(len(recs)))
     diag_ph = {i: e["q_w0"] for i in all_idx
@@ -175,6 +199,22 @@ def compare(case: Path) -> dict:
     return out
 
 
+def parse_scale(text: str) -> tuple:
+    """``"0.9,1.1"`` -> ``(0.9, 1.1)``; a clear error for anything else."""
+    try:
+        out = tuple(float(v) for v in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected comma-separated numbers > 0 (e.g. 0.9,0.95), got {text!r}")
+    if any(not (math.isfinite(f) and f > 0.0) for f in out):
+        raise argparse.ArgumentTypeError(f"every factor must be a finite number > 0, got {text!r}")
+    return out
+
+
 if __name__ == "__main__":   # the model runs use worker processes
-    for arg in sys.argv[1:]:
-        print(json.dumps(compare(Path(arg)), indent=1))
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("cases", nargs="+", type=Path, help="case directories of bench/diagnosis_grid.py")
+    ap.add_argument("--scale", type=parse_scale, default=(),
+                    help="also the final model with every force scaled by these factors (comma-separated)")
+    args = ap.parse_args()
+    for case in args.cases:
+        print(json.dumps(compare(case, args.scale), indent=1))

@@ -151,3 +151,34 @@ def test_no_refit_point_without_a_refit_of_the_concealed_effect():
                          {"encoder_scale": {**REFIT_BASE, "encoder_scale": 0.0}})):
         points = _bench().points_of(d, truth, [_PRec(START)])[1]
         assert not {"its effect, refitted", "its refit"} & set(points)
+
+
+@pytest.mark.parametrize("f", [0.8, 0.93, 1.25])
+def test_scaled_points_scale_every_force(f):
+    """``--scale``: every force coefficient and the drag's torque-like amplitude times ``f``;
+    what is not a force (b_imp is not fitted) stays."""
+    hyp = Hypothesis(START, CANDIDATES["slider_viscous"])
+    x = hyp.coordinates({**START, "c_visc": 0.003})
+    (label, (mc, _)), = _bench().scaled_points(hyp, x, [f]).items()
+    assert label == f"final x{f:g}"
+    for k, v in {**START, "c_visc": 0.003}.items():
+        assert mc[k] == pytest.approx(f * v, rel=1e-9), k
+    assert "b_imp" not in mc
+
+
+def test_scaled_points_leave_a_sensor_term():
+    hyp = Hypothesis(START, CANDIDATES["encoder_scale"])
+    x = hyp.coordinates({**START, "encoder_scale": -0.05})
+    (_, (mc, sc)), = _bench().scaled_points(hyp, x, [0.9]).items()
+    assert mc["mu_k"] == pytest.approx(0.9 * START["mu_k"])
+    assert sc["encoder_scale_b"] == pytest.approx(0.95)
+
+
+@pytest.mark.parametrize("text", ["", "0.9,", "0.9;1.1", "0", "-1", "nan", "inf", "1e-400"])
+def test_scale_option_refuses_what_is_not_a_factor(text):
+    with pytest.raises(__import__("argparse").ArgumentTypeError, match="got"):
+        _bench().parse_scale(text)
+
+
+def test_scale_option_reads_factors():
+    assert _bench().parse_scale("0.9,1.05") == (0.9, 1.05)

@@ -17,7 +17,7 @@ import pytest
 from szdyn.diagnose import diagnosis as dmod
 from szdyn.diagnose.diagnosis import Diagnosis
 from szdyn.diagnose.heavy import heaviest_load
-from szdyn.diagnose.report import _heavy_look_md
+from szdyn.diagnose.report import _heavy_look_md, heaviest_said_none
 
 
 def _recs(spec):
@@ -120,6 +120,9 @@ def test_nothing_named_on_the_heaviest_load_leaves_the_answer_unexplained(others
     assert d.timings_ == {"heavy_look": 200.0, "refit": 100.0} and d.n_runs_ == 1500
     md = " ".join(_heavy_look_md(d))
     assert f"it said {said}, and the answer stays unexplained" in md
+    # only where the heaviest load needs nothing: the mismatch may be the calibration's
+    assert ("does not show that physics is missing" in md) is (said == "none")
+    assert heaviest_said_none(d) is (said == "none")
 
 
 def test_other_recordings_run_from_the_default_offset_when_the_look_estimated_no_phases(others):
@@ -198,3 +201,8 @@ def test_other_loads_runs_each_model_from_its_best_wheel_phase(tmp_path):
     assert got[recs[0].name]["role"] == recs[0].role and got[recs[0].name]["load_kg"] == 0.5
     # the runs are shared: asking again makes none
     assert other_loads(recs, points, floor=0.01, cache=cache, workers=1)[1] == 0
+
+
+@pytest.mark.parametrize("look", [None, {"ran": False, "why": "one load"}, {"ran": False, "why": "x", "failed": True}])
+def test_no_look_that_said_none_no_caution(look):
+    assert heaviest_said_none(SimpleNamespace(heavy_look_=look)) is False
