@@ -144,6 +144,12 @@ def run_case(work: Path, effect: str, seed: int, diag_args, current: float | Non
            "heldout_before": d["fit"]["before"]["heldout_rmse"],
            "heldout_after": d["fit"]["after"]["heldout_rmse"],
            "seconds": float((case / "seconds.txt").read_text()) if (case / "seconds.txt").is_file() else None}
+    look = d.get("heavy_look") or {}
+    if look.get("ran"):
+        # what the heaviest load alone said (an "unexplained" whose heaviest load said "none" has
+        # the report's caution that it may be the calibration's; docs/DIAGNOSIS-DESIGN.md,
+        # "Null 89's unexplained, traced")
+        res["heavy_look"] = look.get("verdict")
     nr = d.get("next_recording")
     if nr is not None:
         # the next-recording step (szdyn.diagnose.design): whom it would tell apart, and with what;
@@ -245,6 +251,11 @@ def write_md(results, path: Path, args):
          f"| concealed effect named correctly | {named}/{len(eff)} ({100 * named / max(len(eff), 1):.0f} %) | >= 90 % |",
          f"| false discoveries on null cases (an effect selected) | {fd}/{len(null)} | 0 |",
          f"| null cases where a mismatch was flagged but left unexplained | {alarms - fd}/{len(null)} | |",
+         f"| `unexplained` answers whose heaviest load alone said none (effect cases; nulls) | "
+         f"{sum(r['verdict'] == 'unexplained' and r.get('heavy_look') == 'none' for r in eff)}/"
+         f"{sum(r['verdict'] == 'unexplained' for r in eff)}; "
+         f"{sum(r['verdict'] == 'unexplained' and r.get('heavy_look') == 'none' for r in null)}/"
+         f"{sum(r['verdict'] == 'unexplained' for r in null)} | |",
          f"| effect-parameter error (correctly named) | median {_fmt(_median(perr), '.1%')}, "
          f"{sum(p <= 0.15 for p in perr)}/{len(perr)} within 15 % | within 15 % |",
          f"| held-out RMSE reduction (correctly named) | median {_fmt(_median(ratios), '.1f')}x, "

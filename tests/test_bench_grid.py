@@ -9,7 +9,7 @@ import pytest
 from cases import load_bench
 
 
-def _case(work, effect, seed, selected, next_recording, ramps=None):
+def _case(work, effect, seed, selected, next_recording, ramps=None, **extra):
     case = work / f"{effect}-{seed}"
     (case / "data").mkdir(parents=True)
     (case / "diagnosis").mkdir()
@@ -20,6 +20,7 @@ def _case(work, effect, seed, selected, next_recording, ramps=None):
          "fit": {"before": {"heldout_rmse": 0.03}, "after": {"heldout_rmse": 0.01}}, "noise_floor": 0.01}
     if next_recording is not None:
         d["next_recording"] = next_recording
+    d.update(extra)
     (case / "diagnosis" / "diagnosis.json").write_text(json.dumps(d))
     (case / "seconds.txt").write_text("12.0\n")
 
@@ -119,3 +120,27 @@ def test_the_grid_keeps_one_protocol_per_work_directory(tmp_path, capsys):
                       "--null-seeds", "1", "--out", str(md), "--json", str(js), "--reading", "/dev/null"]) == 0
     assert "Each case: `synth` writes 4 recordings (loads 0.5 and 1 kg x the profiles up (to 3.14" in md.read_text()
     assert "1 of them held out" in md.read_text()
+
+
+def test_the_grid_counts_unexplained_answers_whose_heaviest_load_said_none(tmp_path):
+    """The report's caution (the mismatch may be the calibration's) stands on the heaviest load
+    alone saying none: the grid records what that look said and counts it per kind of case."""
+    grid = load_bench("diagnosis_grid")
+    grid.truth_primary = lambda truth, effect: None
+    said = lambda v: {"ran": True, "verdict": v, "selected": [], "adopted": False}   # noqa: E731
+    _case(tmp_path, "none", 1, [], None, verdict="unexplained", heavy_look=said("none"))
+    _case(tmp_path, "none", 2, [], None, verdict="unexplained", heavy_look={"ran": False, "why": "one load"})
+    _case(tmp_path, "none", 3, [], None)
+    _case(tmp_path, "load_lift", 4, [], None, verdict="unexplained", heavy_look=said("unexplained"))
+    _case(tmp_path, "load_lift", 5, [], None, verdict="unexplained", heavy_look=said("none"))
+    _case(tmp_path, "load_lift", 6, [], None, verdict="unexplained", heavy_look=said("none"))
+    rows = {(r["effect"], r["seed"]): r for r in
+            [grid.run_case(tmp_path, "none", s, []) for s in (1, 2, 3)]
+            + [grid.run_case(tmp_path, "load_lift", s, []) for s in (4, 5, 6)]}
+    assert rows["none", 1]["heavy_look"] == "none" and rows["load_lift", 4]["heavy_look"] == "unexplained"
+    assert "heavy_look" not in rows["none", 2] and "heavy_look" not in rows["none", 3]
+    md, js = tmp_path / "grid.md", tmp_path / "grid.json"
+    assert grid.main(["--work", str(tmp_path), "--score-only", "--seeds", "4,5,6", "--effects", "load_lift",
+                      "--null-seeds", "1,2,3", "--out", str(md), "--json", str(js), "--reading", "/dev/null"]) == 0
+    assert "| `unexplained` answers whose heaviest load alone said none (effect cases; nulls) | 2/3; 1/2 | |" \
+        in md.read_text()
