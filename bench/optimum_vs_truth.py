@@ -35,15 +35,15 @@ is a valley the diagnosis's phases hide (docs/DIAGNOSIS-DESIGN.md, "The truth's 
 This reads the answer: it is an analysis tool, never part of a diagnosis.
 
 ``--scale F1,F2,...`` adds the final model with every force scaled together by each factor
-(``final xF``: :func:`szdyn.diagnose.force_scale.force_scale_direction`, k_imp included),
-measured the same three ways: whether the truth's valley lies along the force scale from where
+(``final xF``: every parameter times F to its ``force_power``, k_imp included; a sensor term
+stays), measured the same three ways: whether the truth's valley lies along the force scale from where
 the diagnosis ended (on null 89 it did not: docs/DIAGNOSIS-DESIGN.md, "Null 89's unexplained,
 traced").
 """
 from __future__ import annotations
 
-import json
 import argparse
+import json
 import math
 import sys
 from pathlib import Path

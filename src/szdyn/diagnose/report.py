@@ -569,9 +569,11 @@ def _heavy_look_md(d) -> list:
                 f"({', '.join('`' + k + '`' for k in g['recordings'])}); it said {said}, and the answer "
                 f"stays unexplained ({g['seconds']:.0f} s, {g['model_runs']} model runs).")
         if heaviest_said_none(d):
-            text += (" So the mismatch lives in the lighter loads' recordings, and there a calibration can "
-                     "stop short where nothing is missing: the base reproduces them only in a narrow valley "
-                     "of its coefficients, each with wheel phases of its own (szdyn's null 89, nothing "
+            text += (" So the heaviest load's recordings need no added effect, and the mismatch comes from "
+                     "the lighter loads' recordings or from fitting every load with one set of coefficients. "
+                     "A calibration can stop short there with nothing missing: the base reproduces the "
+                     "lighter loads only in a narrow valley of its coefficients, each recording with wheel "
+                     "phases of its own (szdyn's null 89, nothing "
                      "concealed: its true coefficients fit at 1.0x the floor, the calibration ended at 1.5x "
                      "and said unexplained; docs/DIAGNOSIS-DESIGN.md, \"Null 89's unexplained, traced\"). "
                      "On its own, then, this answer does not show that physics is missing.")
