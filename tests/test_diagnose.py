@@ -21,7 +21,8 @@ import numpy as np
 import pytest
 
 from szdyn.diagnose.candidates import CALIBRATED, CANDIDATES, VISCOUS_PROBE_FRACTIONS, primary_std
-from szdyn.diagnose.diagnosis import Diagnosis, probe_additions
+from szdyn.diagnose.diagnosis import Diagnosis
+from szdyn.diagnose.fit_pass import probe_additions
 from szdyn.diagnose.engine import apply_sensor_transform, model_speed
 from szdyn.diagnose.fit import Hypothesis, fit_hypothesis, jacobian, linear_step
 from szdyn.diagnose.locate import FEATURES
@@ -1468,7 +1469,7 @@ def test_starts_skipped_for_a_settler_are_made_once_it_settles_nothing(viscous, 
     """A settler judged ineligible after the refits (ablation, held-out phases): the candidates it
     stopped get their further starts before the decision. Made to happen with a settler that
     settles each candidate's first look only."""
-    from szdyn.diagnose import diagnosis
+    from szdyn.diagnose import fit_pass
 
     _, d0, out = viscous
     asked = {}
@@ -1477,10 +1478,10 @@ def test_starts_skipped_for_a_settler_are_made_once_it_settles_nothing(viscous, 
         asked[exclude] = asked.get(exclude, 0) + 1
         return "phantom" if asked[exclude] == 1 else None
 
-    monkeypatch.setattr(diagnosis, "settled", first_look_only)
+    monkeypatch.setattr(fit_pass, "settled", first_look_only)
     # (no probe addition spared: the small case's, encoder_scale, is the candidate that misses;
     # sparing is covered by the next tests)
-    monkeypatch.setattr(diagnosis, "SETTLED_SKIPS_PROBED", math.inf)
+    monkeypatch.setattr(fit_pass, "SETTLED_SKIPS_PROBED", math.inf)
     man = out.parent / "data" / "manifest.toml"
     assert run_main(["diagnose", str(man), "--out", str(tmp_path / "u"), *SMALL]) == 0
     d = json.loads((tmp_path / "u" / "diagnosis.json").read_text())
@@ -1499,7 +1500,7 @@ def test_a_probe_addition_is_not_refitted_after_a_settler(viscous, tmp_path, mon
     refitted, and the JSON and the report say which and why (the small case: the drag settles,
     encoder_scale's probe was added). The answer is the same as with the additions refitted
     (SETTLED_SKIPS_PROBED above any share), with fewer model runs."""
-    from szdyn.diagnose import diagnosis
+    from szdyn.diagnose import fit_pass
 
     _, d0, out = viscous
     added = list(dict.fromkeys(q["id"] for q in d0["probing"] if q.get("added")))
@@ -1508,13 +1509,13 @@ def test_a_probe_addition_is_not_refitted_after_a_settler(viscous, tmp_path, mon
     assert set(d0["not_refitted"]) == set(added)
     for k in added:
         assert d0["not_refitted"][k]["by"] == "slider_viscous"
-        assert d0["not_refitted"][k]["explained"] >= diagnosis.SETTLED_SKIPS_PROBED
+        assert d0["not_refitted"][k]["explained"] >= fit_pass.SETTLED_SKIPS_PROBED
     assert not any(e["refitted"] for e in d0["effects"] if e["id"] in added)
     report = (out / "report.md").read_text()
     for k in added:
         assert f"Not refitted: `{k}`, added by the probe screening after `slider_viscous`" in report
 
-    monkeypatch.setattr(diagnosis, "SETTLED_SKIPS_PROBED", math.inf)
+    monkeypatch.setattr(fit_pass, "SETTLED_SKIPS_PROBED", math.inf)
     man = out.parent / "data" / "manifest.toml"
     assert run_main(["diagnose", str(man), "--out", str(tmp_path / "all"), *SMALL]) == 0
     d = json.loads((tmp_path / "all" / "diagnosis.json").read_text())
@@ -1564,12 +1565,12 @@ def test_a_spared_probe_addition_is_refitted_once_its_settler_settles_nothing(vi
     it again): the probe addition it spared is refitted then (5f), by the settled rule again (one
     start when a candidate settles it then). Made to happen with ``settled`` answering None for
     the addition once: at its second look, the one in 5f."""
-    from szdyn.diagnose import diagnosis
+    from szdyn.diagnose import fit_pass
 
     _, d0, out = viscous
     added = {q["id"] for q in d0["probing"] if q.get("added")}
     asked = {}
-    real = diagnosis.settled
+    real = fit_pass.settled
 
     def first_look_only(rule, refits, floor, *, exclude=None):
         if exclude in added:
@@ -1578,7 +1579,7 @@ def test_a_spared_probe_addition_is_refitted_once_its_settler_settles_nothing(vi
                 return None
         return real(rule, refits, floor, exclude=exclude)
 
-    monkeypatch.setattr(diagnosis, "settled", first_look_only)
+    monkeypatch.setattr(fit_pass, "settled", first_look_only)
     man = out.parent / "data" / "manifest.toml"
     assert run_main(["diagnose", str(man), "--out", str(tmp_path / "f"), *SMALL]) == 0
     d = json.loads((tmp_path / "f" / "diagnosis.json").read_text())
@@ -1599,17 +1600,17 @@ def test_a_choice_by_the_heldout_recordings_reaches_the_report_and_the_json(visc
     tested in ``test_close_rivals_are_parted_by_the_heldout_recordings``."""
     import dataclasses
 
-    from szdyn.diagnose import diagnosis
+    from szdyn.diagnose import fit_pass
 
     _, d0, out = viscous
-    real, calls = diagnosis.decide, []
+    real, calls = fit_pass.decide, []
 
     def with_a_close_rival(*args, **kw):
         dec = real(*args, **kw)
         calls.append(dec.verdict)
         return dataclasses.replace(dec, passed_over="load_lift") if dec.verdict == "selected" else dec
 
-    monkeypatch.setattr(diagnosis, "decide", with_a_close_rival)
+    monkeypatch.setattr(fit_pass, "decide", with_a_close_rival)
     man = out.parent / "data" / "manifest.toml"
     assert run_main(["diagnose", str(man), "--out", str(tmp_path / "r"), *SMALL]) == 0
     assert "selected" in calls
