@@ -145,7 +145,8 @@ class TwoValleys:
 
 
 def test_fifth_start_reaches_the_deeper_valley_a_factor_away_from_the_calibrated_coefficients():
-    from szdyn.diagnose.diagnosis import AMPLITUDE_MULTIPLES, FIT_TOL
+    from szdyn.diagnose.fit import FIT_TOL
+    from szdyn.diagnose.starts import AMPLITUDE_MULTIPLES
 
     h = Hypothesis(START, CANDIDATES["encoder_delay"])
     model = TwoValleys()

@@ -23,7 +23,7 @@ from ..plots import _pyplot, save_png
 from .amplitude import AMPLITUDE_GRID
 from .candidates import CANDIDATES, FIXED_UNIDENTIFIED, primary_std
 from .data import FEATURE_DT, WINDOW_S
-from .diagnosis import AMPLITUDE_MULTIPLES, AMPLITUDE_PROBES
+from .starts import AMPLITUDE_MULTIPLES, AMPLITUDE_PROBES
 from .locate import feature_table
 from .phase import IDENTIFIED_SHARE, PHASE_UNCERTAINTY
 
@@ -695,7 +695,7 @@ def _refits_md(d) -> str:
     """How the shortlisted candidates were refitted: the starts each refit may get, as ``d``
     (a fitted :class:`~szdyn.diagnose.diagnosis.Diagnosis`: ``shortlist``, ``rivals``, ``rule``
     and ``amplitude_starts`` are read) configured them."""
-    fifth = (f"a fifth from the calibrated coefficients with the effect's amplitude at "
+    fifth = ("a fifth from the calibrated coefficients with the effect's amplitude at "
              + " and ".join(f"x{m:g}" for m in AMPLITUDE_MULTIPLES)
              + " of where the best refit left it, when that refit explains part of the mismatch but less "
              f"than {d.rule.min_explained:.0%} and still leaves a mismatch; ") if d.amplitude_starts else ""
