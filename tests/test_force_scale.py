@@ -257,10 +257,11 @@ def test_a_start_past_the_rigid_drive_is_skipped_in_the_profile():
 
 def test_the_diagnosis_takes_the_profile_only_where_it_fits_clearly_better(monkeypatch):
     import szdyn.diagnose.diagnosis as dg
+    import szdyn.diagnose.refine as refine
     from types import SimpleNamespace
     from szdyn.diagnose.report import _scale_profile_md, _status
 
-    monkeypatch.setattr(dg, "SCALE_PROFILE_FACTORS", (0.55, 1.3))
+    monkeypatch.setattr(refine, "SCALE_PROFILE_FACTORS", (0.55, 1.3))
     h, model, res = _rippled(0.6)
     res.extra["fit_phases"] = {0: 0.25}
     assert dg.Diagnosis().scale_profile is False      # (off by default)
