@@ -11,18 +11,22 @@ model runs in ``CASE/diagnosis/checkpoint``. A diagnosis is a deterministic func
 recordings, options and model runs (``szdyn.diagnose.checkpoint``), so run again with those runs
 it takes the same path in seconds, without simulating. This script copies each case's runs to
 ``REPLAY_DIR/CASE/diagnosis`` and runs the diagnosis there with this checkout's szdyn, or the
-one ``--src`` names (``--no-next-recording``: that ranking runs new designs, not saved ones).
+one ``--src`` names, with the command's default options (as the grid runs it; a case kept with
+other ``--diagnose-args`` would take another path) and ``--no-next-recording`` (that ranking
+runs new designs, not saved ones). Its log goes to ``REPLAY_DIR/CASE/replay.log``.
 
 The checkpoint's fingerprint hashes every ``.py`` file of szdyn, so any code change would
 discard the runs; the replay accepts the stored fingerprint instead. That is valid only when the
-change leaves the model runs themselves alone (``engine``, ``integrators``, ``generated/``...):
-a run the replayed code asks for that the saved ones do not hold is simulated afresh and shows
-in the table's ``model runs`` column (0 where the path is unchanged).
+change leaves the model runs themselves alone (``engine``, ``integrators``, ``generated/``...).
+A run the replayed code asks for that the saved ones do not hold is simulated afresh: a path the
+grid did not take. Such a replay is counted as differing, whatever its outputs.
 
-``--against`` compares each case's ``diagnosis.json`` and ``report.md`` with another replay
-(e.g. of the commit before the change, replayed the same way): equal apart from times and run
-counts (:func:`json_differences`, :func:`report_differences`). Compare replay with replay, not
-with the grid's own output: that one ranked the next recording and counted its model runs.
+``--against`` compares each case's ``diagnosis.json``, ``report.md`` and log with another
+replay (e.g. of the commit before the change, replayed the same way): equal apart from times and
+run counts (:func:`json_differences`, :func:`text_differences`); the log, which names every
+refit, start, continuation and ablation in order, shows a changed path even where the answer is
+the same. Compare replay with replay, not with the grid's own output: that one ranked the next
+recording and counted its model runs.
 Writes ``REPLAY_DIR/replay.json`` (per case: exit code, seconds, model runs, differences) and
 prints a line per case; exit code 1 if any case failed or differs.
 """
@@ -40,11 +44,16 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "src"))
 
-#: diagnosis.json keys whose values are measured, not decided: wall times and run counts
+#: diagnosis.json keys whose values are measured, not decided: wall times and run counts. (Of
+#: ``cost``, the steps its ``seconds`` lists are compared: they say which branches ran.)
 VOLATILE_KEYS = frozenset({"cost", "timings", "model_runs", "seconds"})
 
-#: report.md pieces that are times or run counts: the cost line, "First pass: 611 s, 2166 model runs"
-_REPORT_VOLATILE = (re.compile(r"^Cost: .*$", re.M), re.compile(r"\d+(\.\d+)? s, \d+ model runs"))
+#: report.md and log pieces that are times or run counts: the cost line, "First pass: 611 s, 2166
+#: model runs", "took 48 s and 322 model runs", the log's clock "diagnose [  12.3 s]", and its
+#: progress lines "diagnose [...] 25 model runs"
+_TEXT_VOLATILE = (re.compile(r"^Cost: .*$", re.M), re.compile(r"\d+(\.\d+)? s(,| and) \d+ model runs"),
+                  re.compile(r"^diagnose \[\s*[\d.]+ s\] \d+ model runs$", re.M),
+                  re.compile(r"^diagnose \[\s*[\d.]+ s\]", re.M))
 
 
 def json_differences(a, b, path: str = "") -> list:
@@ -53,6 +62,11 @@ def json_differences(a, b, path: str = "") -> list:
     if isinstance(a, dict) and isinstance(b, dict):
         out = []
         for k in sorted(set(a) | set(b)):
+            if k == "cost" and not path and isinstance(a.get(k), dict) and isinstance(b.get(k), dict):
+                steps = [list(c["seconds"]) if isinstance(c.get("seconds"), dict) else [] for c in (a[k], b[k])]
+                if steps[0] != steps[1]:
+                    out.append(f"/cost/seconds: steps {steps[0]} != {steps[1]}")
+                continue
             if k in VOLATILE_KEYS:
                 continue
             if k not in a or k not in b:
@@ -69,10 +83,10 @@ def json_differences(a, b, path: str = "") -> list:
     return []
 
 
-def report_differences(a: str, b: str) -> list:
-    """Line numbers (1-based) at which two report.md texts differ once times and run counts are
-    blanked; a different line count is one entry."""
-    for pat in _REPORT_VOLATILE:
+def text_differences(a: str, b: str) -> list:
+    """Line numbers (1-based) at which two report.md texts (or two logs) differ once times and
+    run counts are blanked; a different line count is one entry."""
+    for pat in _TEXT_VOLATILE:
         a, b = pat.sub("#", a), pat.sub("#", b)
     la, lb = a.splitlines(), b.splitlines()
     out = [i + 1 for i, (x, y) in enumerate(zip(la, lb)) if x != y]
@@ -91,7 +105,8 @@ def cases(works) -> list:
 
 def replay_one(src: Path, dst: Path) -> int:
     """Run the diagnosis of case ``src`` into ``dst/diagnosis`` from a copy of its saved runs
-    (in this process: the stored fingerprint is accepted, see the module notes)."""
+    (in this process: the stored fingerprint is accepted, see the module notes). The patch of
+    ``checkpoint.fingerprint`` acts because the command imports it when it runs."""
     import szdyn.diagnose.checkpoint as checkpoint
     from szdyn.diagnose.command import diagnose_command
 
@@ -102,16 +117,15 @@ def replay_one(src: Path, dst: Path) -> int:
     shutil.copytree(src / "diagnosis" / checkpoint.CHECKPOINT_DIR, runs)
     stored = json.loads((runs / "fingerprint.json").read_text())["fingerprint"]
     checkpoint.fingerprint = lambda recordings: stored
-    return diagnose_command([str(src / "data" / "manifest.toml"), "--out", str(dst / "diagnosis"), "--quiet",
+    return diagnose_command([str(src / "data" / "manifest.toml"), "--out", str(dst / "diagnosis"),
                              "--keep-runs", "--no-next-recording"])
 
 
-def model_runs(report: Path):
-    """The model runs the replay made (the cost line of its report.md), or None."""
-    if not report.is_file():
+def model_runs(diagnosis_json: Path):
+    """The model runs the replay made (``cost.model_runs`` of its diagnosis.json), or None."""
+    if not diagnosis_json.is_file():
         return None
-    m = re.search(r"\), (\d+) model runs", report.read_text())
-    return int(m.group(1)) if m else None
+    return json.loads(diagnosis_json.read_text()).get("cost", {}).get("model_runs")
 
 
 def main(argv=None) -> int:
@@ -137,27 +151,39 @@ def main(argv=None) -> int:
     for k, c in enumerate(todo, 1):
         dst = args.out / c.name
         t = time.perf_counter()
-        rc = subprocess.run([sys.executable, __file__, "--work", str(c.parent), "--out", str(args.out),
-                             *(["--src", str(args.src)] if args.src else []), "--one", str(c), str(dst)],
-                            capture_output=True, text=True).returncode
+        proc = subprocess.run([sys.executable, __file__, "--work", str(c.parent), "--out", str(args.out),
+                               *(["--src", str(args.src)] if args.src else []), "--one", str(c), str(dst)],
+                              capture_output=True, text=True)
+        rc = proc.returncode
+        (dst / "replay.log").write_text(proc.stderr)
         row = {"case": c.name, "work": str(c.parent), "rc": rc, "seconds": round(time.perf_counter() - t, 1),
-               "model_runs": model_runs(dst / "diagnosis" / "report.md")}
+               "model_runs": model_runs(dst / "diagnosis" / "diagnosis.json")}
+        if rc != 0:
+            row["stderr_tail"] = proc.stderr.strip().splitlines()[-5:]
+        if rc == 0 and row["model_runs"]:
+            # the saved runs did not hold them: the replayed code took a path the grid did not
+            row["differences"] = [f"made {row['model_runs']} model runs (a path the saved runs do not cover)"]
         if args.against is not None and rc == 0:
-            other = args.against / c.name / "diagnosis"
-            if not (other / "diagnosis.json").is_file():
-                row["differences"] = ["not in --against"]
+            other = args.against / c.name
+            if not (other / "diagnosis" / "diagnosis.json").is_file():
+                row.setdefault("differences", []).append("not in --against")
             else:
-                row["differences"] = (
-                    json_differences(json.loads((other / "diagnosis.json").read_text()),
+                row.setdefault("differences", []).extend(
+                    json_differences(json.loads((other / "diagnosis" / "diagnosis.json").read_text()),
                                      json.loads((dst / "diagnosis" / "diagnosis.json").read_text()))
-                    + [f"report.md line {n}" for n in report_differences(
-                        (other / "report.md").read_text(), (dst / "diagnosis" / "report.md").read_text())])
+                    + [f"report.md line {n}" for n in text_differences(
+                        (other / "diagnosis" / "report.md").read_text(),
+                        (dst / "diagnosis" / "report.md").read_text())]
+                    + ([f"replay.log line {n}" for n in text_differences(   # (each names its own directory)
+                        (other / "replay.log").read_text().replace(str(other), "CASE"),
+                        proc.stderr.replace(str(dst), "CASE"))]
+                       if (other / "replay.log").is_file() else ["no replay.log in --against"]))
         bad += rc != 0 or bool(row.get("differences"))
         rows.append(row)
         diff = "" if "differences" not in row else f", {len(row['differences'])} difference(s)"
         print(f"[{k}/{len(todo)}] {c.parent.name}/{c.name}: rc {rc}, {row['seconds']} s, "
               f"{row['model_runs']} model runs{diff}", flush=True)
-        for d in row.get("differences", [])[:5]:
+        for d in row.get("differences", [])[:5] + row.get("stderr_tail", []):
             print(f"    {d}")
     from szdyn.io import write_json
     write_json(args.out / "replay.json", {"against": None if args.against is None else str(args.against),

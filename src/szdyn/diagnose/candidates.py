@@ -117,13 +117,13 @@ class Candidate:
         candidate's refit as a start.
     probes_only : bool
         With ``probes``: they replace the bound-fraction probes of
-        :meth:`~szdyn.diagnose.diagnosis.Diagnosis._starts` and the fourth start (default,
+        :meth:`~szdyn.diagnose.starts.RefitStarts._starts` and the fourth start (default,
         slider_stribeck). False: they are tried besides them (slider_viscous, whose fourth
         start named it on seed 20).
     phase_ladder : tuple of float
         Values of the candidate's single parameter tried, each with the fit recordings' wheel
         phases estimated at it, by a phase-profiled step of its refit
-        (:meth:`~szdyn.diagnose.diagnosis.Diagnosis._phase_step`), and the reason it is
+        (:meth:`~szdyn.diagnose.refine.FitRefinements._phase_step`), and the reason it is
         refitted in every pass with such steps. For an effect that moves the wheel's angle
         against the measured motor angle: the phases estimated at a base model without it
         absorb that shift, and at them the effect cannot lower the cost (drive_compliance seed
@@ -145,7 +145,7 @@ class Candidate:
     phase_ladder: tuple = ()
 
     def __post_init__(self):
-        # the ladder sets the candidate's one parameter (Diagnosis._phase_step)
+        # the ladder sets the candidate's one parameter (FitRefinements._phase_step)
         if self.phase_ladder and len(self.params) != 1:
             raise ValueError(f"candidate {self.id}: a phase ladder needs a single parameter, "
                              f"it has {len(self.params)}")

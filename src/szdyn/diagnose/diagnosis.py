@@ -1,6 +1,7 @@
 """The diagnosis as an estimator: ``Diagnosis(...).fit(recordings)`` (scikit-learn style).
 
-Steps (each a module of its own):
+Steps (each a module of its own; steps 1-5 are one pass, :class:`~.fit_pass.FitPass`, whose
+comments number the same work 1-6c, 6 being the decision):
 
 1. calibrate the base model's coefficients on the fit recordings (:mod:`.fit`);
 2. estimate the noise floor (:mod:`.noise`); where the calibrated base is within
@@ -55,7 +56,7 @@ from ..errors import interrupted
 from .candidates import CANDIDATES, Candidate
 from .detect import detectable_amplitude
 from .fit import FIT_TOL, Hypothesis, fit_hypothesis, jacobian
-from .fit_pass import FitPass, probe_additions
+from .fit_pass import FitPass
 from .refine import FitRefinements
 from .starts import RefitStarts
 from .noise import (MAX_COEFFICIENT_STEP, bump_noise, coefficient_noise, load_median, sensor_noise, torque_bump_noise,
@@ -65,9 +66,9 @@ from .heavy import heaviest_load, other_loads
 from .selection import SelectionRule, screen
 from .split import exchange_pairs, exchanged, hidden_conditions
 
-__all__ = ["FIT_TOL", "FLOOR_SPREAD", "POLISH_PHASE_STEPS", "RESTART_RATIO",
+__all__ = ["FLOOR_SPREAD", "POLISH_PHASE_STEPS", "RESTART_RATIO",
            "SECOND_LOOK_STEPS", "SENSOR_SETTLES_RESCUES", "STAGED_RATIO", "WEIGHTINGS",
-           "Diagnosis", "probe_additions"]
+           "Diagnosis"]
 
 #: How the recordings' residuals are weighted (see ``Diagnosis(weighting=...)``).
 WEIGHTINGS = ("fallback", "always", "off")
@@ -1011,6 +1012,6 @@ class Diagnosis(RefitStarts, FitRefinements):
 
     def _fit_pass(self, recs, weighted: bool = False) -> None:
         """One diagnosis with the roles of ``recs`` as they are (see :meth:`fit`); ``weighted``:
-        each recording's residual weighted by the common floor over its own. Steps 1-6, done by
-        :class:`~.fit_pass.FitPass`."""
+        each recording's residual weighted by the common floor over its own. Steps 1-5 of the
+        module notes, done by :class:`~.fit_pass.FitPass`."""
         FitPass(self, recs, weighted).run()

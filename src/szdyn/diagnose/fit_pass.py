@@ -1,5 +1,6 @@
-"""One pass of the diagnosis: steps 1-6 of :mod:`.diagnosis` with the recordings' roles as
-they are (:meth:`.diagnosis.Diagnosis._fit_pass`).
+"""One pass of the diagnosis: steps 1-5 of :mod:`.diagnosis` (numbered 1-6c in the comments
+here, 6 being the decision) with the recordings' roles as they are
+(:meth:`.diagnosis.Diagnosis._fit_pass`).
 
 :class:`FitPass` is that pass as a method object: what its steps share (the feature model, the
 calibrated base ``cal``, the held-out baseline ``h0``, the shortlist, the candidates a settler
@@ -75,7 +76,7 @@ def probe_additions(probing, shortlist, rule: SelectionRule, *, rss_base: float,
     Parameters
     ----------
     probing : list of dict
-        :attr:`Diagnosis.probing_` entries sorted by ``rmse_probe`` (rad/s), each with ``id``
+        :attr:`~.diagnosis.Diagnosis.probing_` entries sorted by ``rmse_probe`` (rad/s), each with ``id``
         and ``own_probes``.
     shortlist : list of str
         Candidate ids already to be refitted (not modified).
@@ -382,7 +383,7 @@ class FitPass:
     def assess(self, cand, h, res, later=None):
         """Judge the refit ``res`` of ``cand`` (hypothesis ``h``) by the rule and store it in
         ``refits_``; ``later``: a later start's fit, which replaces the stored one only where
-        :meth:`Diagnosis._keeps_earlier` allows."""
+        :meth:`~.refine.FitRefinements._keeps_earlier` allows."""
         d, model, held_idx, h0 = self.d, self.model, self.held_idx, self.h0
         # the fit recordings' phases it was fitted with (they are the base's unless a
         # phase-profiled step of its own moved them): its speeds are run with them later

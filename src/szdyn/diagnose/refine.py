@@ -230,7 +230,7 @@ class FitRefinements:
     @contextmanager
     def _fit_phases(model, res):
         """Run the model with the fit recordings' phases ``res`` was fitted with (its
-        ``extra["fit_phases"]``, set by :meth:`_phase_step` and by ``assess``); the other
+        ``extra["fit_phases"]``, set by :meth:`_phase_step` and by :meth:`~.fit_pass.FitPass.assess`); the other
         recordings' phases as they are. Restores ``model.phases`` on exit."""
         saved = dict(model.phases)
         model.phases = {**saved, **res.extra.get("fit_phases", {})}
