@@ -155,6 +155,7 @@ def main(argv=None) -> int:
                                *(["--src", str(args.src)] if args.src else []), "--one", str(c), str(dst)],
                               capture_output=True, text=True)
         rc = proc.returncode
+        dst.mkdir(parents=True, exist_ok=True)    # (a child that failed early made none)
         (dst / "replay.log").write_text(proc.stderr)
         row = {"case": c.name, "work": str(c.parent), "rc": rc, "seconds": round(time.perf_counter() - t, 1),
                "model_runs": model_runs(dst / "diagnosis" / "diagnosis.json")}
