@@ -114,6 +114,8 @@ def replay_one(src: Path, dst: Path) -> int:
         shutil.rmtree(dst)
     (dst / "diagnosis").mkdir(parents=True)
     runs = dst / "diagnosis" / checkpoint.CHECKPOINT_DIR
+    # the runs only; the recordings, which the diagnosis only reads, are read where the grid
+    # wrote them (diagnosis_grid.copy_kept_runs, for --runs-from, copies both)
     shutil.copytree(src / "diagnosis" / checkpoint.CHECKPOINT_DIR, runs)
     stored = json.loads((runs / "fingerprint.json").read_text())["fingerprint"]
     checkpoint.fingerprint = lambda recordings: stored
