@@ -691,7 +691,7 @@ def write_report(d, out, next_recording=None) -> dict:
     # torque_fit.png is written only with a measured current: an earlier run's must not stay
     with staged_output(out, last=("diagnosis.json",), owns=OUTPUT_FILES) as stage:
         updated_parameters(d).to_json(stage / "params.json")
-        _plots(d, stage)
+        _plots(d, stage, js["effects"])
         md = _report_md(d, js)
         if next_recording is not None:
             # before the units and the cost, after the fit it would decide between

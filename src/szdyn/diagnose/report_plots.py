@@ -1,6 +1,7 @@
 """The diagnosis's figures: residuals against time and features, candidate scores, fits.
 
-Split from :mod:`.report`, which calls :func:`_plots` into its staging directory.
+Split from :mod:`.report`, which calls :func:`_plots` into its staging directory with the
+effects list of the JSON dict it has built.
 """
 from __future__ import annotations
 
@@ -11,10 +12,11 @@ import numpy as np
 
 from ..plots import _pyplot, save_png
 from .locate import feature_table
-from .report_json import _to_json
 
 
-def _plots(d, out: Path):
+def _plots(d, out: Path, effects):
+    """Every PNG of a fitted diagnosis ``d`` into ``out``; ``effects`` is diagnosis.json's
+    ``effects`` list (ranked, with scores), which the caller has already built."""
     plt = _pyplot()
     recs = d.recordings_
     n = len(recs)
@@ -48,10 +50,9 @@ def _plots(d, out: Path):
     fig.tight_layout()
     save_png(fig, out / "residual_features.png")
 
-    js_eff = _to_json(d)["effects"]
     fig, ax = plt.subplots(figsize=(7, 3.2))
-    ids = [e["id"] for e in js_eff]
-    ax.barh(ids, [e["score"] for e in js_eff], color=["C3" if e["selected"] else "C0" for e in js_eff])
+    ids = [e["id"] for e in effects]
+    ax.barh(ids, [e["score"] for e in effects], color=["C3" if e["selected"] else "C0" for e in effects])
     ax.axvline(d.rule.min_explained, color="k", ls="--", lw=0.8)
     ax.set_xlabel("share of the excess residual energy explained")
     ax.invert_yaxis()
