@@ -970,6 +970,48 @@ def test_fit_exchanges_the_split_only_when_a_heldout_recording_shows_what_the_fi
         assert len(d.seen) == 1 and d.first_split_ is None and d.unused_split_ is None
 
 
+class _LookedAgain(_ScriptedDiagnosis):
+    """Scripted passes whose wheel phases were estimated (within the phase gate), so that an
+    "unexplained" is looked at again; records the phase-profiled steps of each pass."""
+
+    def _fit_pass(self, recs, weighted=False):
+        super()._fit_pass(recs, weighted)
+        self.phase_ = {"estimated": True}
+        self.steps_seen = getattr(self, "steps_seen", []) + [self._steps]
+
+
+def test_the_second_looks_answer_faces_the_split_exchange_once():
+    from szdyn.diagnose.report import _second_look_md, _split_md
+
+    # unexplained, then "none" on the second look with a held-out run far off (slider_stribeck
+    # seed 71): the split is exchanged, that pass with the second look's steps, and it answers
+    d = _LookedAgain([("unexplained", {}), ("none", {"b_down": 18.0}), ("selected", {})]).fit(_runs())
+    assert d.seen == [{"a_fast", "b_down"}, {"a_fast", "b_down"}, {"a_fast", "b_up"}]
+    assert d.steps_seen == [0, 2, 2] and d._steps == 0
+    assert d.verdict_ == "selected" and d.second_look_["verdict"] == "unexplained"
+    assert d.first_split_["verdict"] == "none" and d.first_split_["after_second_look"] is True
+    assert d.first_split_["exchanged"] == {"b_down": "b_up"}
+    assert {r.name for r in d.recordings_ if r.role != "fit"} == {"a_fast", "b_up"}
+    assert d.n_runs_ == 30 and list(d.timings_)[:2] == ["before_second_look", "first_split"]
+    d.rule, d.hidden_conditions_ = SelectionRule(), []
+    assert "Its split was then exchanged (below)." in "\n".join(_second_look_md(d))
+    assert _split_md(d)[0].startswith("**Split exchanged.** The second look's pass with `a_fast`, `b_down` held out said none")
+    assert "That pass: 1 s, 10 model runs." in _split_md(d)[0]
+    # a named effect there whose exchanged pass names none: the second look's answer stands
+    d = _LookedAgain([("unexplained", {}), ("selected", {"b_down": 26.6}), ("unexplained", {})]).fit(_runs())
+    assert d.verdict_ == "selected" and d.first_split_ is None and d.unused_split_["after_second_look"]
+    assert {r.name for r in d.recordings_ if r.role != "fit"} == {"a_fast", "b_down"}
+    # a split exchanged already (the first pass said none, its exchanged pass unexplained): the
+    # second look's answer is final, whatever it holds out
+    d = _LookedAgain([("none", {"b_down": 18.0}), ("unexplained", {}), ("none", {"a_fast": 30.0})]).fit(_runs())
+    assert len(d.seen) == 3 and d.verdict_ == "none" and "after_second_look" not in d.first_split_
+    # within max_remaining floors, or the exchange switched off: no exchange after the look
+    for script, kw in [([("unexplained", {}), ("none", {"b_down": 4.9})], {}),
+                       ([("unexplained", {}), ("none", {"b_down": 18.0})], {"exchange_split": False})]:
+        d = _LookedAgain(script, **kw).fit(_runs())
+        assert len(d.seen) == 2 and d.first_split_ is None and d.unused_split_ is None
+
+
 def test_report_says_which_pass_of_an_exchanged_split_is_the_answer():
     from szdyn.diagnose.report import _split_md
 

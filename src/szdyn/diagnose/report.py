@@ -187,20 +187,21 @@ def _split_md(d) -> list:
         said = (f"named {', '.join(named)}, but its updated model missed held-out " if named else
                 f"said {f1['verdict']}: the calibrated base reproduced the fit recordings "
                 f"({f1['calibrated_fit_over_floor']:.2f}x the floor) but missed held-out ")
-        L += ["**Split exchanged.** A first pass with " + ", ".join(f"`{k}`" for k in f1["heldout"])
+        which = "The second look's pass" if f1.get("after_second_look") else "A first pass"
+        L += [f"**Split exchanged.** {which} with " + ", ".join(f"`{k}`" for k in f1["heldout"])
               + f" held out {said}"
               + ", ".join(f"`{k}` ({f1['heldout_beyond_floor'][k]:.1f}x)" for k in f1["exchanged"])
               + " by more than " + f"{d.rule.max_remaining:g}x the floor, so the split may have hidden "
               "the mismatch. This diagnosis is the second pass, with "
               + ", ".join(f"`{k}` fitted and `{v}` held out instead" for k, v in f1["exchanged"].items())
               + f" (the fit recording most like it: same travel direction, then nearest speed, then "
-              "nearest load). First pass: "
+              f"nearest load). {'That' if f1.get('after_second_look') else 'First'} pass: "
               f"{f1['seconds']:.0f} s, {f1['model_runs']} model runs.", ""]
     if d.unused_split_:
         u = d.unused_split_
         tried = ("**Split exchange tried.** The updated model misses held-out "
                  + ", ".join(f"`{k}` ({d.heldout_beyond_floor_[k]:.1f}x the floor)" for k in u["exchanged"])
-                 + ". A second pass with "
+                 + (". After the second look, a pass with " if u.get("after_second_look") else ". A second pass with ")
                  + ", ".join(f"`{k}` fitted and `{v}` held out" for k, v in u["exchanged"].items()))
         if u.get("worse_on"):
             L += [tried + f" named {', '.join(u['selected'])} too, but its model missed "
@@ -256,6 +257,9 @@ def _second_look_md(d) -> list:
         return []
     f = d.second_look_
     cost = f"First pass: {f['seconds']:.0f} s, {f['model_runs']} model runs."
+    if (d.first_split_ or {}).get("after_second_look"):
+        # that pass then missed a held-out recording, and the exchanged split's pass answers
+        cost = "Its split was then exchanged (below). " + cost
     if f["start"] == "ablation":
         a = f["ablation"]
         return [f"**Second look.** A first pass said unexplained: its calibration stopped at "
